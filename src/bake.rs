@@ -1,0 +1,460 @@
+//! Baking one resolved level: geometry, form factors, solves, gather.
+//!
+//! [`bake`] looks at the scene before simulating it and runs only the work
+//! that changes the answer; each thing it leaves out is recorded in the
+//! report's `skipped` list with the reason (see [`plan_channels`]).
+
+use std::time::Instant;
+
+use crate::gather::{self, Kernel, Radiosity};
+use crate::geometry::{self, Geometry};
+use crate::kernel::Falloff;
+use crate::level::{Cell, Level};
+use crate::output::Lightmap;
+use crate::quality::{Knobs, Quality};
+use crate::report::{Counts, Energy, Report, Skip, Timings};
+use crate::solve::{self, SolveError, SolveSettings};
+use crate::transport::{self, FormFactors, Patches};
+
+/// How the floor gather is done.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum GatherMethod {
+    /// Exact visible angles, tiled and parallel (the default).
+    Fast,
+    /// The paper's method: sampled rays per pixel and patch against every edge.
+    Naive,
+}
+
+/// Everything that decides what a bake computes.
+#[derive(Clone, Debug)]
+pub struct Settings {
+    pub quality: Quality,
+    /// The discretisation; normally `quality.knobs()`.
+    pub knobs: Knobs,
+    /// Half-energy distance in pixels.
+    pub falloff: Option<f64>,
+    pub kernel: Kernel,
+    pub gather: GatherMethod,
+    /// Truncate the bounce series (0 = direct light only).
+    pub bounces: Option<u32>,
+    /// Sample points per patch for the naive gather.
+    pub naive_samples: usize,
+}
+
+impl Settings {
+    pub fn new(quality: Quality) -> Settings {
+        Settings {
+            quality,
+            knobs: quality.knobs(),
+            falloff: None,
+            kernel: Kernel::Flatland,
+            gather: GatherMethod::Fast,
+            bounces: None,
+            naive_samples: 8,
+        }
+    }
+}
+
+/// Why a level could not be baked.
+#[derive(Debug, thiserror::Error)]
+pub enum BakeError {
+    #[error("{message}")]
+    Unbounded { message: String },
+    #[error(transparent)]
+    Solve(#[from] SolveError),
+}
+
+/// A baked level, with the intermediate results callers may want to keep.
+pub struct Baked {
+    pub geometry: Geometry,
+    pub patches: Patches,
+    pub form_factors: Option<FormFactors>,
+    /// Radiosity per channel (R, G, B) per patch.
+    pub radiosity: [Vec<f64>; 3],
+    pub lightmap: Lightmap,
+    pub report: Report,
+}
+
+/// Which channels need a solve, and which can copy another or be zero.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ChannelPlan {
+    /// For each channel: `Some(k)` = uses the result of distinct class `k`;
+    /// `None` = no emission anywhere, the channel is dark.
+    pub class_of: [Option<usize>; 3],
+    /// A representative channel per distinct class.
+    pub classes: Vec<usize>,
+}
+
+/// Groups channels whose reflectance and emission are equal for every used
+/// material (a grey scene has one class), and drops channels with no emission.
+pub fn plan_channels(level: &Level, used: &[bool]) -> ChannelPlan {
+    let mut class_of = [None; 3];
+    let mut classes: Vec<usize> = Vec::new();
+    for c in 0..3 {
+        let emits = level.materials.iter().zip(used).any(|(m, &u)| u && m.emission[c] > 0.0);
+        if !emits {
+            continue;
+        }
+        let same = |a: usize, b: usize| {
+            level
+                .materials
+                .iter()
+                .zip(used)
+                .all(|(m, &u)| !u || (m.emission[a] == m.emission[b] && m.reflectance[a] == m.reflectance[b]))
+        };
+        match classes.iter().position(|&r| same(r, c)) {
+            Some(k) => class_of[c] = Some(k),
+            None => {
+                class_of[c] = Some(classes.len());
+                classes.push(c);
+            }
+        }
+    }
+    ChannelPlan { class_of, classes }
+}
+
+const CHANNEL: [&str; 3] = ["red", "green", "blue"];
+
+/// Bakes a level. `progress(stage)` is called as each stage starts.
+pub fn bake(level: &Level, settings: &Settings, progress: &dyn Fn(&str)) -> Result<Baked, BakeError> {
+    let t_total = Instant::now();
+    let mut timings = Timings::default();
+    let mut skipped: Vec<Skip> = Vec::new();
+    let mut warnings: Vec<String> = level.warnings.clone();
+    let skip = |s: &mut Vec<Skip>, effect: &str, reason: String| s.push(Skip { effect: effect.into(), reason });
+    let falloff = settings.falloff.map(Falloff::new);
+
+    progress("geometry");
+    let t = Instant::now();
+    let geometry = geometry::trace(level);
+    let patches = Patches::new(&geometry, settings.knobs.patch_len);
+    timings.geometry = t.elapsed().as_secs_f64();
+    let edges = &geometry.edges;
+    let np = patches.len();
+
+    // Per-patch materials, per channel.
+    let mut used = vec![false; level.materials.len()];
+    for e in edges {
+        used[e.material as usize] = true;
+    }
+    let mat = |p: usize| &level.materials[edges[patches.edge[p] as usize].material as usize];
+    let rho: [Vec<f64>; 3] = std::array::from_fn(|c| (0..np).map(|p| mat(p).reflectance[c]).collect());
+    let emit: [Vec<f64>; 3] = std::array::from_fn(|c| (0..np).map(|p| mat(p).emission[c]).collect());
+    let edge_emit: [Vec<f64>; 3] =
+        std::array::from_fn(|c| edges.iter().map(|e| level.materials[e.material as usize].emission[c]).collect());
+
+    let floor_pixels = gather::floor_pixels(level);
+    if floor_pixels.is_empty() {
+        warnings.push("the level has no floor pixels: nothing to light".into());
+    }
+    if !edges.iter().any(|e| level.materials[e.material as usize].emits()) {
+        warnings.push("the level has no emitter pixels facing free space: the lightmap is black".into());
+    }
+
+    let plan = plan_channels(level, &used);
+    for c in 0..3 {
+        if plan.class_of[c].is_none() {
+            skip(&mut skipped, &format!("{} channel", CHANNEL[c]), "no emission in this channel".into());
+        }
+    }
+    if plan.classes.len() == 1 && plan.class_of.iter().all(Option::is_some) {
+        skip(&mut skipped, "channel solves", "grey scene: 1 solve for 3 channels".into());
+    } else {
+        for c in 0..3 {
+            if let Some(k) = plan.class_of[c]
+                && plan.classes[k] != c
+            {
+                skip(
+                    &mut skipped,
+                    &format!("{} channel", CHANNEL[c]),
+                    format!("same materials as {}: result shared", CHANNEL[plan.classes[k]]),
+                );
+            }
+        }
+    }
+
+    // Is there any bounce to simulate?
+    let any_reflects = plan.classes.iter().any(|&c| rho[c].iter().any(|&r| r > 0.0));
+    let mut need_bounce = !plan.classes.is_empty() && any_reflects && np > 0;
+    if !plan.classes.is_empty() && !any_reflects {
+        skip(&mut skipped, "bounce", "no wall reflects".into());
+    }
+    if need_bounce && settings.bounces == Some(0) {
+        skip(&mut skipped, "bounce", "bounces = 0: direct light only".into());
+        need_bounce = false;
+    }
+
+    let mut form_factors = None;
+    let mut paper_rows: Option<Vec<Vec<(u32, f64)>>> = None;
+    if need_bounce {
+        progress("form factors");
+        let t = Instant::now();
+        // Row iterator over whichever F was built, to look for light.
+        let sees_light = |row: &dyn Fn(usize) -> Vec<(usize, f64)>| {
+            (0..np).any(|i| {
+                plan.classes.iter().any(|&c| rho[c][i] > 0.0)
+                    && row(i).iter().any(|&(j, f)| j != i && f > 0.0 && (0..3).any(|c| emit[c][j] > 0.0))
+            })
+        };
+        let lit = match settings.kernel {
+            Kernel::Flatland => {
+                let ff = transport::form_factors(&geometry, &patches, settings.knobs.quad, falloff, &|_| f64::INFINITY);
+                let lit = sees_light(&|i| ff.row(i).collect());
+                form_factors = Some(ff);
+                lit
+            }
+            Kernel::Paper => {
+                let rows = crate::paper::form_factors(&geometry, &patches, falloff);
+                let lit = sees_light(&|i| rows[i].iter().map(|&(j, f)| (j as usize, f)).collect());
+                paper_rows = Some(rows);
+                lit
+            }
+        };
+        timings.form_factors = t.elapsed().as_secs_f64();
+        // Reflecting patches that see no emitter receive nothing: no bounce.
+        if !lit {
+            skip(&mut skipped, "bounce", "no reflecting patch sees an emitter".into());
+            need_bounce = false;
+        }
+    }
+
+    progress("solve");
+    let t = Instant::now();
+    let mut class_b: Vec<Vec<f64>> = Vec::new();
+    let mut solves = 0;
+    let mut residual: f64 = 0.0;
+    let mut solver = "none".to_string();
+    let solve_settings = SolveSettings { tolerance: settings.knobs.tolerance, ..SolveSettings::default() };
+    for &c in &plan.classes {
+        if !need_bounce {
+            class_b.push(emit[c].clone());
+            continue;
+        }
+        solves += 1;
+        let b = if let Some(rows) = &paper_rows {
+            let (b, rescaled) = crate::paper::solve(rows, &rho[c], &emit[c], settings.knobs.tolerance);
+            solver = "paper".into();
+            if rescaled > 0 {
+                warnings.push(format!(
+                    "paper kernel, {} channel: {rescaled} rows of rho F summed to 1 or more and were rescaled (F normalised per row, rho F capped at {})",
+                    CHANNEL[c],
+                    crate::paper::MAX_ROW
+                ));
+            }
+            b
+        } else {
+            let ff = form_factors.as_ref().expect("flatland kernel builds F when a bounce is needed");
+            if let Some(n) = settings.bounces {
+                solver = "bounces".into();
+                solve::truncated(ff, &rho[c], &emit[c], n)
+            } else {
+                let s = solve::solve_channel(ff, &rho[c], &emit[c], &solve_settings).map_err(|e| match e {
+                    SolveError::Unbounded { patches: ps } => {
+                        BakeError::Unbounded { message: unbounded_message(&geometry, &patches, &ps, CHANNEL[c]) }
+                    }
+                    other => BakeError::Solve(other),
+                })?;
+                residual = residual.max(s.residual);
+                solver = s.method.to_string();
+                s.radiosity
+            }
+        };
+        class_b.push(b);
+    }
+    timings.solve = t.elapsed().as_secs_f64();
+
+    // Energy, per channel, summed.
+    let mut energy = Energy::default();
+    for c in 0..3 {
+        let Some(k) = plan.class_of[c] else { continue };
+        let b = &class_b[k];
+        let (em, ab, es) = energy_balance(form_factors.as_ref(), &patches, &rho[c], &emit[c], b);
+        energy.emitted += em;
+        energy.absorbed += ab;
+        energy.escaped += es;
+    }
+
+    // Gather.
+    progress("gather");
+    let t = Instant::now();
+    let kk = class_b.len();
+    let edge_e: Vec<Vec<f64>> = plan.classes.iter().map(|&c| edge_emit[c].clone()).collect();
+    let rad = Radiosity::new(&patches, &class_b, &edge_e);
+    // Free components that no lit edge faces receive nothing: not gathered.
+    let mut lit_comp = vec![false; geometry.component_count as usize];
+    for (i, e) in edges.iter().enumerate() {
+        if rad.edge_emits[i] || rad.edge_reflects[i] {
+            lit_comp[e.component as usize] = true;
+        }
+    }
+    let (reached, unreached): (Vec<[i32; 2]>, Vec<[i32; 2]>) = floor_pixels
+        .iter()
+        .partition(|p| kk > 0 && lit_comp[geometry.components[p[1] as usize * level.width + p[0] as usize] as usize]);
+    if !unreached.is_empty() && kk > 0 {
+        skip(&mut skipped, "gather", format!("{} floor pixels in regions no light reaches", unreached.len()));
+    }
+    let values = if kk == 0 || reached.is_empty() {
+        Vec::new()
+    } else {
+        match settings.gather {
+            GatherMethod::Fast => {
+                gather::gather(&geometry, &patches, &rad, falloff, settings.kernel, &reached, &|_| f64::INFINITY)
+            }
+            GatherMethod::Naive => {
+                gather::gather_naive(&geometry, &patches, &rad, falloff, settings.kernel, &reached, settings.naive_samples)
+            }
+        }
+    };
+    let mut rgb = vec![[0f32; 3]; level.width * level.height];
+    for (i, p) in reached.iter().enumerate() {
+        let px = &mut rgb[p[1] as usize * level.width + p[0] as usize];
+        for c in 0..3 {
+            if let Some(k) = plan.class_of[c] {
+                px[c] = values[i * kk + k] as f32;
+            }
+        }
+    }
+    // Solid pixels: mean radiosity of their exposed sides.
+    let radiosity: [Vec<f64>; 3] =
+        std::array::from_fn(|c| plan.class_of[c].map_or_else(|| vec![0.0; np], |k| class_b[k].clone()));
+    solid_pixels(level, &geometry, &patches, &radiosity, &mut rgb);
+    timings.gather = t.elapsed().as_secs_f64();
+    timings.total = t_total.elapsed().as_secs_f64();
+
+    if rgb.iter().any(|p| p.iter().any(|v| !v.is_finite() || *v < 0.0)) {
+        // Never hand out NaN or negative light: this would be a bug upstream.
+        warnings.push("non-finite or negative light was clamped to 0 (please report this level)".into());
+        for p in &mut rgb {
+            for v in p.iter_mut() {
+                if !v.is_finite() || *v < 0.0 {
+                    *v = 0.0;
+                }
+            }
+        }
+    }
+
+    let report = Report {
+        level: level.name.clone(),
+        size: [level.width, level.height],
+        quality: settings.quality.name().into(),
+        kernel: match settings.kernel {
+            Kernel::Flatland => "flatland".into(),
+            Kernel::Paper => "paper".into(),
+        },
+        gather: match settings.gather {
+            GatherMethod::Fast => "fast".into(),
+            GatherMethod::Naive => "naive".into(),
+        },
+        falloff: settings.falloff,
+        bounces: settings.bounces,
+        counts: Counts {
+            edges: edges.len(),
+            patches: np,
+            floor_pixels: floor_pixels.len(),
+            form_factor_entries: form_factors
+                .as_ref()
+                .map_or_else(|| paper_rows.as_ref().map_or(0, |r| r.iter().map(Vec::len).sum()), FormFactors::nnz),
+            unreached_pixels: if kk > 0 { unreached.len() } else { floor_pixels.len() },
+            culled_pairs: 0,
+        },
+        timings,
+        solves,
+        residual,
+        solver,
+        energy,
+        skipped,
+        warnings,
+        outputs: vec![],
+        version: env!("CARGO_PKG_VERSION").into(),
+    };
+    Ok(Baked {
+        geometry,
+        patches,
+        form_factors,
+        radiosity,
+        lightmap: Lightmap { width: level.width, height: level.height, rgb },
+        report,
+    })
+}
+
+/// `(emitted, absorbed, escaped)` power of one channel. With form factors the
+/// effective lengths are used, for which the discrete system conserves energy
+/// exactly; without them nothing is reflected and everything emitted escapes
+/// or is absorbed on first hit.
+pub fn energy_balance(ff: Option<&FormFactors>, patches: &Patches, rho: &[f64], e: &[f64], b: &[f64]) -> (f64, f64, f64) {
+    let n = patches.len();
+    let Some(ff) = ff else {
+        let emitted: f64 = (0..n).map(|p| patches.length(p) * e[p]).sum();
+        // Without a bounce solve the fate of light is not tracked patch by
+        // patch: report it as escaped/absorbed by first hit unknown = escaped.
+        return (emitted, 0.0, emitted);
+    };
+    let (mut em, mut ab, mut es) = (0.0, 0.0, 0.0);
+    for i in 0..n {
+        let d = ff.dlen[i];
+        let h: f64 = ff.row(i).map(|(j, f)| f * b[j]).sum();
+        em += d * e[i];
+        ab += d * (1.0 - rho[i]) * h;
+        es += d * b[i] * (1.0 - ff.coverage[i]);
+    }
+    (em, ab, es)
+}
+
+fn unbounded_message(g: &Geometry, patches: &Patches, ps: &[usize], channel: &str) -> String {
+    let (mut x0, mut y0, mut x1, mut y1) = (i32::MAX, i32::MAX, i32::MIN, i32::MIN);
+    for &p in ps {
+        let e = &g.edges[patches.edge[p] as usize];
+        for q in [e.a, e.b] {
+            x0 = x0.min(q[0]);
+            y0 = y0.min(q[1]);
+            x1 = x1.max(q[0]);
+            y1 = y1.max(q[1]);
+        }
+    }
+    format!(
+        "the closed region within pixels ({x0},{y0})-({x1},{y1}) has walls of reflectance 1 in the {channel} channel and contains an emitter: no light can leave, so its brightness has no finite value; lower a reflectance below 1 or open the region"
+    )
+}
+
+/// Fills solid pixels with the mean radiosity of their exposed sides.
+fn solid_pixels(level: &Level, g: &Geometry, patches: &Patches, b: &[Vec<f64>; 3], rgb: &mut [[f32; 3]]) {
+    let w = level.width;
+    let mut sum = vec![[0f64; 3]; level.width * level.height];
+    let mut count = vec![0u32; level.width * level.height];
+    for (ei, e) in g.edges.iter().enumerate() {
+        let (lo, hi) = e.extent();
+        let range = patches.of_edge(ei);
+        let step = patches.step[ei];
+        for u in lo as i32..hi as i32 {
+            let px = e.solid_pixel_at(u);
+            let i = px[1] as usize * w + px[0] as usize;
+            // Length-weighted mean of the patches covering [u, u + 1].
+            let (a, bnd) = (u as f64, u as f64 + 1.0);
+            let k0 = (((a - lo) / step).floor() as usize).min(range.len() - 1);
+            let mut v = [0f64; 3];
+            let mut k = k0;
+            while k < range.len() {
+                let (s0, s1) = (lo + k as f64 * step, lo + (k + 1) as f64 * step);
+                let ov = s1.min(bnd) - s0.max(a);
+                if ov > 0.0 {
+                    for c in 0..3 {
+                        v[c] += ov * b[c][range.start + k];
+                    }
+                }
+                if s1 >= bnd {
+                    break;
+                }
+                k += 1;
+            }
+            for c in 0..3 {
+                sum[i][c] += v[c];
+            }
+            count[i] += 1;
+        }
+    }
+    for (i, cell) in level.cells.iter().enumerate() {
+        if matches!(cell, Cell::Solid(_)) && count[i] > 0 {
+            rgb[i] = [0, 1, 2].map(|c| (sum[i][c] / count[i] as f64) as f32);
+        }
+    }
+}

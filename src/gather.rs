@@ -1,0 +1,279 @@
+//! Gathering light onto floor pixels (SPEC section 4):
+//! `I(p) = 1/(2 pi) * integral over directions of B(first hit) * w(distance)`.
+//!
+//! The fast gather finds exactly which stretches of which edges a pixel
+//! centre sees ([`crate::visibility`]) and integrates them in closed form
+//! ([`crate::kernel`]). An edge's emission is uniform along it, so it is one
+//! term per visible stretch: direct light is exact at every quality. Only the
+//! reflected part `B - E`, which lives on patches, is walked patch by patch,
+//! and only on edges that reflect anything.
+//!
+//! The naive gather is the paper's method, kept as the yardstick for speed:
+//! per pixel, per patch, a few sample points on the patch, each ray tested
+//! against every edge.
+
+use std::f64::consts::TAU;
+
+use crate::geometry::{Edge, Geometry};
+use crate::kernel::{Falloff, GatherLine};
+use crate::level::{Cell, Level};
+use crate::transport::{Patches, for_each_visibility};
+use crate::visibility::{Reach, Span, View};
+
+/// Radiosity in a form the gather can use: `components` values per edge
+/// (uniform emission) and per patch (reflected light `B - E`).
+#[derive(Clone, Debug)]
+pub struct Radiosity {
+    pub components: usize,
+    /// `edge_emission[e * components + k]`.
+    pub edge_emission: Vec<f64>,
+    /// `reflected[p * components + k]`, the patch's `B - E`.
+    pub reflected: Vec<f64>,
+    /// Edges with some non-zero reflected light.
+    pub edge_reflects: Vec<bool>,
+    /// Edges with some non-zero emission.
+    pub edge_emits: Vec<bool>,
+}
+
+impl Radiosity {
+    /// From per-patch radiosity `b[k][p]` and per-edge emission `e[k][edge]`.
+    pub fn new(patches: &Patches, b: &[Vec<f64>], e: &[Vec<f64>]) -> Radiosity {
+        let k = b.len();
+        let edges = patches.first.len() - 1;
+        let mut edge_emission = vec![0.0; edges * k];
+        let mut reflected = vec![0.0; patches.len() * k];
+        let mut edge_reflects = vec![false; edges];
+        let mut edge_emits = vec![false; edges];
+        for c in 0..k {
+            for ed in 0..edges {
+                edge_emission[ed * k + c] = e[c][ed];
+                edge_emits[ed] |= e[c][ed] != 0.0;
+                for p in patches.of_edge(ed) {
+                    let r = b[c][p] - e[c][ed];
+                    reflected[p * k + c] = r;
+                    edge_reflects[ed] |= r != 0.0;
+                }
+            }
+        }
+        Radiosity { components: k, edge_emission, reflected, edge_reflects, edge_emits }
+    }
+
+    /// Radiosity of patch `p` in component `k`.
+    pub fn patch(&self, patches: &Patches, p: usize, k: usize) -> f64 {
+        let e = patches.edge[p] as usize;
+        self.edge_emission[e * self.components + k] + self.reflected[p * self.components + k]
+    }
+}
+
+/// Which kernel turns radiosity into pixel light.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kernel {
+    /// Exact flatland transport (SPEC 4).
+    Flatland,
+    /// The paper's equation 5: `A cos(theta) / (A + r^2) * Vis` per patch.
+    Paper,
+}
+
+/// Shared output slice written at disjoint indices from parallel tasks.
+pub(crate) struct Disjoint<'a, T> {
+    ptr: *mut T,
+    len: usize,
+    _life: std::marker::PhantomData<&'a mut [T]>,
+}
+
+// SAFETY: callers only write each index from one task at a time.
+unsafe impl<T: Send> Sync for Disjoint<'_, T> {}
+
+impl<'a, T> Disjoint<'a, T> {
+    pub(crate) fn new(s: &'a mut [T]) -> Self {
+        Disjoint { ptr: s.as_mut_ptr(), len: s.len(), _life: std::marker::PhantomData }
+    }
+    /// # Safety
+    /// No other task may access index `i` concurrently.
+    pub(crate) unsafe fn write(&self, i: usize, v: T) {
+        assert!(i < self.len);
+        // SAFETY: in bounds (checked above); exclusive per the caller's contract.
+        unsafe { *self.ptr.add(i) = v };
+    }
+}
+
+/// Adds to `acc` the light that pixel centre `p` receives from its visible spans.
+pub fn pixel_light(
+    edges: &[Edge],
+    patches: &Patches,
+    rad: &Radiosity,
+    falloff: Option<Falloff>,
+    kernel: Kernel,
+    p: [f64; 2],
+    spans: &[Span],
+    acc: &mut [f64],
+) {
+    let k = rad.components;
+    for span in spans {
+        let ei = span.edge as usize;
+        let e = &edges[ei];
+        if kernel == Kernel::Paper {
+            paper_span(edges, patches, rad, falloff, p, span, acc);
+            continue;
+        }
+        let d = e.front_distance(p);
+        let foot = if e.normal.is_vertical_edge() { p[1] } else { p[0] };
+        let line = GatherLine::new(d, falloff);
+        if rad.edge_emits[ei] {
+            let g = line.between(span.s0 - foot, span.s1 - foot) / TAU;
+            for c in 0..k {
+                acc[c] += rad.edge_emission[ei * k + c] * g;
+            }
+        }
+        if rad.edge_reflects[ei] {
+            let mut prev: Option<(f64, f64)> = None;
+            patches.for_each_piece(edges, span, |pt, a, b| {
+                let fa = match prev {
+                    Some((s, v)) if s == a => v,
+                    _ => line.at(a - foot),
+                };
+                let fb = line.at(b - foot);
+                prev = Some((b, fb));
+                let g = (fb - fa) / TAU;
+                for c in 0..k {
+                    acc[c] += rad.reflected[pt * k + c] * g;
+                }
+            });
+        }
+    }
+}
+
+/// Equation 5 of the paper for the patches of one visible span: each patch
+/// adds `B * A cos(theta) / (A + r^2) * (visible fraction)`, with `theta` and
+/// `r` taken at the patch centre and `A` infinite without falloff.
+fn paper_span(edges: &[Edge], patches: &Patches, rad: &Radiosity, falloff: Option<Falloff>, p: [f64; 2], span: &Span, acc: &mut [f64]) {
+    let e = &edges[span.edge as usize];
+    let d = e.front_distance(p);
+    patches.for_each_piece(edges, span, |pt, a, b| {
+        let (s0, s1) = patches.bounds(edges, pt);
+        let centre = e.point_at(0.5 * (s0 + s1));
+        let r = (p[0] - centre[0]).hypot(p[1] - centre[1]);
+        let w = falloff.map_or(1.0, |f| f.weight(r));
+        let vis = (b - a) / (s1 - s0);
+        for c in 0..rad.components {
+            acc[c] += rad.patch(patches, pt, c) * (d / r) * w * vis;
+        }
+    });
+}
+
+/// The floor pixels of a level, as query points.
+pub fn floor_pixels(level: &Level) -> Vec<[i32; 2]> {
+    let mut v = Vec::new();
+    for y in 0..level.height {
+        for x in 0..level.width {
+            if level.cell(x, y) == Cell::Floor {
+                v.push([x as i32, y as i32]);
+            }
+        }
+    }
+    v
+}
+
+/// Fast gather: light at each of `pixels`, `components` values per pixel.
+pub fn gather(
+    geometry: &Geometry,
+    patches: &Patches,
+    rad: &Radiosity,
+    falloff: Option<Falloff>,
+    kernel: Kernel,
+    pixels: &[[i32; 2]],
+    reach: Reach,
+) -> Vec<f64> {
+    let k = rad.components;
+    let mut out = vec![0.0; pixels.len() * k];
+    let pos: Vec<[f64; 2]> = pixels.iter().map(|p| [p[0] as f64 + 0.5, p[1] as f64 + 0.5]).collect();
+    let shared = Disjoint::new(&mut out);
+    for_each_visibility(geometry, &pos, pixels, &|_| View::Full, reach, &|i, spans| {
+        let mut acc = vec![0.0; k];
+        pixel_light(&geometry.edges, patches, rad, falloff, kernel, pos[i], spans, &mut acc);
+        for (c, v) in acc.into_iter().enumerate() {
+            // SAFETY: each pixel index is visited exactly once.
+            unsafe { shared.write(i * k + c, v) };
+        }
+    });
+    out
+}
+
+/// Does the segment `p -> q` touch edge `e` (closed segments)?
+fn segment_hits(p: [f64; 2], q: [f64; 2], e: &Edge) -> bool {
+    let a = [e.a[0] as f64, e.a[1] as f64];
+    let b = [e.b[0] as f64, e.b[1] as f64];
+    let cross = |o: [f64; 2], u: [f64; 2], v: [f64; 2]| (u[0] - o[0]) * (v[1] - o[1]) - (u[1] - o[1]) * (v[0] - o[0]);
+    let d1 = cross(a, b, p);
+    let d2 = cross(a, b, q);
+    let d3 = cross(p, q, a);
+    let d4 = cross(p, q, b);
+    if ((d1 > 0.0 && d2 < 0.0) || (d1 < 0.0 && d2 > 0.0)) && ((d3 > 0.0 && d4 < 0.0) || (d3 < 0.0 && d4 > 0.0)) {
+        return true;
+    }
+    let on = |o: [f64; 2], u: [f64; 2], v: [f64; 2], d: f64| {
+        d == 0.0 && v[0] >= o[0].min(u[0]) && v[0] <= o[0].max(u[0]) && v[1] >= o[1].min(u[1]) && v[1] <= o[1].max(u[1])
+    };
+    on(a, b, p, d1) || on(a, b, q, d2) || on(p, q, a, d3) || on(p, q, b, d4)
+}
+
+/// The paper's gather: for every pixel and every patch, `samples` points on
+/// the patch, each ray tested against every edge. Same output as [`gather`].
+pub fn gather_naive(
+    geometry: &Geometry,
+    patches: &Patches,
+    rad: &Radiosity,
+    falloff: Option<Falloff>,
+    kernel: Kernel,
+    pixels: &[[i32; 2]],
+    samples: usize,
+) -> Vec<f64> {
+    use rayon::prelude::*;
+    let k = rad.components;
+    let edges = &geometry.edges;
+    let samples = samples.max(1);
+    let mut out = vec![0.0; pixels.len() * k];
+    out.par_chunks_mut(k).zip(pixels.par_iter()).for_each(|(acc, px)| {
+        let p = [px[0] as f64 + 0.5, px[1] as f64 + 0.5];
+        let comp = geometry.components[px[1] as usize * geometry.width + px[0] as usize];
+        for pt in 0..patches.len() {
+            let ei = patches.edge[pt] as usize;
+            let e = &edges[ei];
+            let d = e.front_distance(p);
+            if d <= 0.0 || e.component != comp {
+                continue;
+            }
+            let (s0, s1) = patches.bounds(edges, pt);
+            let len = s1 - s0;
+            let mut visible = 0usize;
+            let mut sum = 0.0;
+            for s in 0..samples {
+                let y = e.point_at(s0 + (s as f64 + 0.5) / samples as f64 * len);
+                // Nudge the target off the edge so the edge itself does not block.
+                let n = e.normal.vec();
+                let yq = [y[0] + n[0] as f64 * 1e-9, y[1] + n[1] as f64 * 1e-9];
+                let blocked = edges.iter().enumerate().any(|(j, o)| j != ei && segment_hits(p, yq, o));
+                if blocked {
+                    continue;
+                }
+                visible += 1;
+                let r = (p[0] - y[0]).hypot(p[1] - y[1]);
+                let w = falloff.map_or(1.0, |f| f.weight(r));
+                sum += (d / r) / r * w * (len / samples as f64);
+            }
+            for c in 0..k {
+                let b = rad.patch(patches, pt, c);
+                acc[c] += match kernel {
+                    Kernel::Flatland => b * sum / TAU,
+                    Kernel::Paper => {
+                        let centre = e.point_at(0.5 * (s0 + s1));
+                        let r = (p[0] - centre[0]).hypot(p[1] - centre[1]);
+                        let w = falloff.map_or(1.0, |f| f.weight(r));
+                        b * (d / r) * w * visible as f64 / samples as f64
+                    }
+                };
+            }
+        }
+    });
+    out
+}

@@ -1,0 +1,1 @@
+//! Drawing the palette legend image.

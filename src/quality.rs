@@ -1,0 +1,63 @@
+//! Quality presets: how much accuracy a bake pays for.
+//!
+//! Every preset computes direct light exactly (closed-form visible angles);
+//! the presets differ only in how finely the reflected light is resolved.
+
+use serde::{Deserialize, Serialize};
+
+/// A named quality preset.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Quality {
+    /// Preview while painting.
+    Draft,
+    /// Daily bakes.
+    Normal,
+    /// Shipping.
+    High,
+    /// Converged: the yardstick the others are measured against.
+    Reference,
+}
+
+/// The discretisation knobs a preset sets.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Knobs {
+    /// Longest patch, in pixels.
+    pub patch_len: f64,
+    /// Gauss-Legendre points per patch for the form factors.
+    pub quad: usize,
+    /// Relative residual the solver must reach.
+    pub tolerance: f64,
+    /// With falloff: pixels and patches whose distance to an emitting or
+    /// reflecting edge makes its largest possible contribution smaller than
+    /// this fraction of the level's brightest emission are not gathered.
+    pub reach_bound: f64,
+}
+
+impl Quality {
+    pub const ALL: [Quality; 4] = [Quality::Draft, Quality::Normal, Quality::High, Quality::Reference];
+
+    pub fn knobs(self) -> Knobs {
+        match self {
+            Quality::Draft => Knobs { patch_len: 8.0, quad: 2, tolerance: 1e-4, reach_bound: 1e-3 },
+            Quality::Normal => Knobs { patch_len: 4.0, quad: 3, tolerance: 1e-6, reach_bound: 1e-4 },
+            Quality::High => Knobs { patch_len: 2.0, quad: 4, tolerance: 1e-8, reach_bound: 1e-5 },
+            Quality::Reference => Knobs { patch_len: 0.5, quad: 8, tolerance: 1e-10, reach_bound: 0.0 },
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Quality::Draft => "draft",
+            Quality::Normal => "normal",
+            Quality::High => "high",
+            Quality::Reference => "reference",
+        }
+    }
+}
+
+impl std::fmt::Display for Quality {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}

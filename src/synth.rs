@@ -1,0 +1,1 @@
+//! Procedural levels for samples, benchmarks and tests.
