@@ -186,6 +186,7 @@ pub fn bake(level: &Level, settings: &Settings, progress: &dyn Fn(&str)) -> Resu
 
     let mut form_factors = None;
     let mut paper_rows: Option<Vec<Vec<(u32, f64)>>> = None;
+    let mut point_rows = None;
     if need_bounce {
         progress("form factors");
         let t = Instant::now();
@@ -198,9 +199,11 @@ pub fn bake(level: &Level, settings: &Settings, progress: &dyn Fn(&str)) -> Resu
         };
         let lit = match settings.kernel {
             Kernel::Flatland => {
-                let ff = transport::form_factors(&geometry, &patches, settings.knobs.quad, falloff, &|_| f64::INFINITY);
+                let (ff, points) =
+                    transport::form_factors(&geometry, &patches, settings.knobs.quad, falloff, &|_| f64::INFINITY);
                 let lit = sees_light(&|i| ff.row(i).collect());
                 form_factors = Some(ff);
+                point_rows = Some(points);
                 lit
             }
             Kernel::Paper => {
@@ -279,7 +282,14 @@ pub fn bake(level: &Level, settings: &Settings, progress: &dyn Fn(&str)) -> Resu
     let t = Instant::now();
     let kk = class_b.len();
     let edge_e: Vec<Vec<f64>> = plan.classes.iter().map(|&c| edge_emit[c].clone()).collect();
-    let rad = Radiosity::new(&patches, &class_b, &edge_e);
+    // Linear profiles along patches from the radiosity at the quadrature points.
+    let slopes: Vec<Vec<f64>> = match (&point_rows, need_bounce) {
+        (Some(pr), true) => {
+            plan.classes.iter().zip(&class_b).map(|(&c, b)| pr.slopes(&patches, &rho[c], &emit[c], b)).collect()
+        }
+        _ => Vec::new(),
+    };
+    let rad = Radiosity::new(&patches, &class_b, &slopes, &edge_e);
     // Free components that no lit edge faces receive nothing: not gathered.
     let mut lit_comp = vec![false; geometry.component_count as usize];
     for (i, e) in edges.iter().enumerate() {

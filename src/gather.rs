@@ -27,8 +27,11 @@ pub struct Radiosity {
     pub components: usize,
     /// `edge_emission[e * components + k]`.
     pub edge_emission: Vec<f64>,
-    /// `reflected[p * components + k]`, the patch's `B - E`.
+    /// `reflected[p * components + k]`, the patch's mean `B - E`.
     pub reflected: Vec<f64>,
+    /// `slope[p * components + k]`: `B` varies linearly along the patch with
+    /// this slope (per unit of the edge's axis coordinate) around its mean.
+    pub slope: Vec<f64>,
     /// Edges with some non-zero reflected light.
     pub edge_reflects: Vec<bool>,
     /// Edges with some non-zero emission.
@@ -36,12 +39,14 @@ pub struct Radiosity {
 }
 
 impl Radiosity {
-    /// From per-patch radiosity `b[k][p]` and per-edge emission `e[k][edge]`.
-    pub fn new(patches: &Patches, b: &[Vec<f64>], e: &[Vec<f64>]) -> Radiosity {
+    /// From per-patch radiosity `b[k][p]`, slopes `g[k][p]` (empty for flat
+    /// patches) and per-edge emission `e[k][edge]`.
+    pub fn new(patches: &Patches, b: &[Vec<f64>], g: &[Vec<f64>], e: &[Vec<f64>]) -> Radiosity {
         let k = b.len();
         let edges = patches.first.len() - 1;
         let mut edge_emission = vec![0.0; edges * k];
         let mut reflected = vec![0.0; patches.len() * k];
+        let mut slope = vec![0.0; patches.len() * k];
         let mut edge_reflects = vec![false; edges];
         let mut edge_emits = vec![false; edges];
         for c in 0..k {
@@ -51,11 +56,13 @@ impl Radiosity {
                 for p in patches.of_edge(ed) {
                     let r = b[c][p] - e[c][ed];
                     reflected[p * k + c] = r;
-                    edge_reflects[ed] |= r != 0.0;
+                    let s = g.get(c).and_then(|v| v.get(p)).copied().unwrap_or(0.0);
+                    slope[p * k + c] = s;
+                    edge_reflects[ed] |= r != 0.0 || s != 0.0;
                 }
             }
         }
-        Radiosity { components: k, edge_emission, reflected, edge_reflects, edge_emits }
+        Radiosity { components: k, edge_emission, reflected, slope, edge_reflects, edge_emits }
     }
 
     /// Radiosity of patch `p` in component `k`.
@@ -126,17 +133,23 @@ pub fn pixel_light(
             }
         }
         if rad.edge_reflects[ei] {
-            let mut prev: Option<(f64, f64)> = None;
+            let (lo, _) = e.extent();
+            let h = patches.step[ei];
+            let first = patches.first[ei] as usize;
+            let mut prev: Option<(f64, f64, f64)> = None;
             patches.for_each_piece(edges, span, |pt, a, b| {
-                let fa = match prev {
-                    Some((s, v)) if s == a => v,
-                    _ => line.at(a - foot),
+                let (fa, la) = match prev {
+                    Some((s, v, l)) if s == a => (v, l),
+                    _ => (line.at(a - foot), line.at_linear(a - foot)),
                 };
-                let fb = line.at(b - foot);
-                prev = Some((b, fb));
-                let g = (fb - fa) / TAU;
+                let (fb, lb) = (line.at(b - foot), line.at_linear(b - foot));
+                prev = Some((b, fb, lb));
+                let (g0, g1) = ((fb - fa) / TAU, (lb - la) / TAU);
+                // Patch centre, to express B(s) = r + slope (s - mid) in t = s - foot.
+                let mid = lo + ((pt - first) as f64 + 0.5) * h;
                 for c in 0..k {
-                    acc[c] += rad.reflected[pt * k + c] * g;
+                    let g = rad.slope[pt * k + c];
+                    acc[c] += (rad.reflected[pt * k + c] + g * (foot - mid)) * g0 + g * g1;
                 }
             });
         }

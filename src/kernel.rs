@@ -41,9 +41,11 @@ impl Falloff {
     }
 }
 
-/// The antiderivative `F(t)` of the gather integrand `w d psi` along a line at
-/// distance `d`, so that a stretch `[t0, t1]` of uniform radiosity `B`
-/// contributes `B * (F(t1) - F(t0)) / (2 pi)`.
+/// The antiderivatives of the gather integrands along a line at distance `d`:
+/// `F(t)` of `w d psi` (uniform radiosity) and `T(t)` of `t w d psi` (the
+/// linear part of a patch's radiosity; `integral t w d psi = d/2 ln(r^2 / (A + r^2))`,
+/// and `d ln r` without falloff). A stretch `[t0, t1]` of radiosity `a + b t`
+/// contributes `(a (F(t1) - F(t0)) + b (T(t1) - T(t0))) / (2 pi)`.
 #[derive(Clone, Copy, Debug)]
 pub struct GatherLine {
     d: f64,
@@ -70,6 +72,17 @@ impl GatherLine {
         match self.fall {
             None => psi,
             Some((k, c)) => psi - k * (t / c).atan(),
+        }
+    }
+
+    /// Antiderivative of `t w d psi` at offset `t`.
+    #[inline]
+    pub fn at_linear(&self, t: f64) -> f64 {
+        let r2 = self.d * self.d + t * t;
+        match self.fall {
+            None => 0.5 * self.d * r2.ln(),
+            // A + r^2 = c^2 + t^2, with c^2 = A + d^2.
+            Some((_, c)) => 0.5 * self.d * (r2 / (c * c + t * t)).ln(),
         }
     }
 
@@ -215,6 +228,16 @@ mod tests {
             let want = numeric(d, t0, t1, |_, r| fall.map_or(1.0, |f| f.weight(r)));
             assert!((line.at(t1) - line.at(t0) - want).abs() < 1e-8, "{fall:?}");
             assert!((line.between(t0, t1) - want).abs() < 1e-8, "{fall:?}");
+        }
+    }
+
+    #[test]
+    fn linear_gather_closed_form_matches_quadrature() {
+        for fall in [None, Some(Falloff::new(0.7)), Some(Falloff::new(5.0)), Some(Falloff::new(300.0))] {
+            let (d, t0, t1) = (2.3, -4.0, 7.5);
+            let line = GatherLine::new(d, fall);
+            let want = numeric(d, t0, t1, |psi, r| d * psi.tan() * fall.map_or(1.0, |f| f.weight(r)));
+            assert!((line.at_linear(t1) - line.at_linear(t0) - want).abs() < 1e-7, "{fall:?}");
         }
     }
 

@@ -26,7 +26,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::geometry::{Edge, Geometry, Normal};
 use crate::kernel::{FactorLine, Falloff, gauss_legendre};
-use crate::visibility::{Rect, Reach, Span, Sweeper, TileTree, View};
+use crate::visibility::{Blocks, Rect, Reach, Span, Sweeper, TileTree, View};
 
 /// Patches: every edge cut into equal pieces.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -259,6 +259,48 @@ impl FormFactors {
     }
 }
 
+/// The point-to-patch factors of every quadrature point, `q` points per
+/// patch in order (CSR). After a solve they give the radiosity at each point,
+/// `B(x) = E + rho * sum_j K(x, j) B_j`, from which each patch gets a slope.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct PointRows {
+    pub q: usize,
+    pub row_ptr: Vec<usize>,
+    pub col: Vec<u32>,
+    pub val: Vec<f64>,
+}
+
+impl PointRows {
+    /// Per-patch slope (per unit length along the edge's axis) of the
+    /// radiosity profile through the quadrature points, least squares, limited
+    /// so that `B` stays non-negative over the patch. `b` is the solved patch
+    /// radiosity, `e` and `rho` per patch.
+    pub fn slopes(&self, patches: &Patches, rho: &[f64], e: &[f64], b: &[f64]) -> Vec<f64> {
+        let (xs, ws) = gauss_legendre(self.q);
+        let q = xs.len();
+        let den: f64 = xs.iter().zip(ws).map(|(x, w)| w * (x - 0.5) * (x - 0.5)).sum();
+        (0..patches.len())
+            .into_par_iter()
+            .map(|p| {
+                if den == 0.0 || rho[p] == 0.0 {
+                    return 0.0;
+                }
+                let mut num = 0.0;
+                for k in 0..q {
+                    let r = self.row_ptr[p * q + k]..self.row_ptr[p * q + k + 1];
+                    let h: f64 = self.col[r.clone()].iter().zip(&self.val[r]).map(|(&j, &v)| v * b[j as usize]).sum();
+                    num += ws[k] * (e[p] + rho[p] * h) * (xs[k] - 0.5);
+                }
+                let len = patches.length(p);
+                let g = num / (den * len);
+                // Keep B >= 0 at both ends of the patch.
+                let limit = 2.0 * b[p].max(0.0) / len;
+                g.clamp(-limit, limit)
+            })
+            .collect()
+    }
+}
+
 /// Query points bucketed by leaf tile, with a summed-area table to answer
 /// "does this rectangle hold any point" in constant time.
 pub struct PointGrid {
@@ -333,30 +375,35 @@ pub fn for_each_visibility<F>(
     F: Fn(usize, &[Span]) + Sync,
 {
     let tree = TileTree::new(geometry);
+    let blocks = Blocks::new(geometry);
     let grid = PointGrid::new(geometry.width, geometry.height, tree.leaf as usize, pixel);
-    tree.for_each_leaf(&|r| grid.any_in(r), reach, &|r, cands| {
+    tree.for_each_leaf(&|r| grid.any_in(r), reach, &|leaf| {
         SWEEPER.with(|cell| {
             let (sweeper, spans) = &mut *cell.borrow_mut();
-            for &i in grid.in_leaf(r) {
+            for &i in grid.in_leaf(leaf.rect) {
                 let i = i as usize;
                 let px = pixel[i];
                 let comp = geometry.components[px[1] as usize * geometry.width + px[0] as usize];
                 spans.clear();
-                sweeper.sweep(&geometry.edges, cands, pos[i], view(i), comp, spans);
+                match leaf.candidates_at(px) {
+                    Some(cands) => sweeper.sweep(&geometry.edges, cands, pos[i], view(i), comp, spans),
+                    None => sweeper.walk(&geometry.edges, &blocks, pos[i], view(i), comp, spans),
+                }
                 f(i, spans);
             }
         })
     });
 }
 
-/// Computes the form factors with `quad` Gauss-Legendre points per patch.
+/// Computes the form factors with `quad` Gauss-Legendre points per patch,
+/// and the per-point rows behind them.
 pub fn form_factors(
     geometry: &Geometry,
     patches: &Patches,
     quad: usize,
     falloff: Option<Falloff>,
     reach: Reach,
-) -> FormFactors {
+) -> (FormFactors, PointRows) {
     let edges = &geometry.edges;
     let (xs, ws) = gauss_legendre(quad);
     let q = xs.len();
@@ -399,6 +446,14 @@ pub fn form_factors(
             merged
         })
         .collect();
+    let mut points = PointRows { q, row_ptr: Vec::with_capacity(n * q + 1), col: Vec::new(), val: Vec::new() };
+    points.row_ptr.push(0);
+    for r in results {
+        let r = r.into_inner().expect("no panics while holding the lock");
+        points.col.extend(r.iter().map(|e| e.0));
+        points.val.extend(r.iter().map(|e| e.1));
+        points.row_ptr.push(points.col.len());
+    }
     let len: Vec<f64> = (0..n).map(|p| patches.length(p)).collect();
-    FormFactors::from_raw_rows(rows, &len)
+    (FormFactors::from_raw_rows(rows, &len), points)
 }

@@ -1,24 +1,34 @@
 //! Exact visibility in flatland.
 //!
-//! [`Sweeper::sweep`] finds, for one point, exactly which parts of which edges
-//! it sees: an angular sweep over the candidate edges' endpoints. Between two
-//! consecutive endpoint directions the set of edges crossed by a ray does not
-//! change, and because edges never cross, the nearest of them is the same for
-//! the whole angular interval; it is found at the interval's middle, so rays
-//! that graze a vertex never need a tie-break. Interval boundaries are rays
-//! through edge endpoints, so the pieces of the boundary that two neighbouring
-//! edges share (a corner, or the corner where two diagonal wall pixels touch)
-//! produce bit-identical directions: no light leaks through corners.
+//! A query point sees, in each direction, the first edge that a ray from it
+//! hits. Both query methods here return that exactly, as [`Span`]s: which
+//! stretch of which edge is the first hit over which range of directions.
 //!
-//! Directions are ordered with a pseudo-angle (the "diamond angle"), which is
-//! monotone in the true angle and needs one division instead of an `atan2`.
+//! * [`Sweeper::sweep`] is an angular sweep over a short candidate list.
+//!   Between two consecutive endpoint directions the set of edges crossed by a
+//!   ray does not change, and because edges never cross, the nearest of them
+//!   is the same over the whole interval; it is found at the interval's
+//!   middle, so rays that graze a vertex never need a tie-break.
+//! * [`Sweeper::walk`] is output-sensitive, for places that see little of
+//!   many edges (mazes, walls with gaps): it walks a hierarchy of blocks of
+//!   edges from near to far, keeps a one-dimensional angular buffer of what is
+//!   already covered and by what, and skips every block whose whole angular
+//!   range is covered by surfaces nearer than the block. Many short walls
+//!   together hide what is behind them ("occluder fusion") for free.
 //!
-//! [`TileTree`] gives every 8x8 tile of pixels a conservative list of
-//! candidate edges, refined down a quadtree: an edge is dropped for a tile
-//! only when that is proven — it faces away from the whole tile, its free
-//! side belongs to a region of free space the tile does not touch, it lies
-//! beyond the falloff reach, or one straight wall run blocks every segment
-//! from the tile to it (an exact test in integer arithmetic).
+//! Interval boundaries are always rays through edge endpoints, so two edges
+//! that share a corner (including two diagonal wall pixels touching at a
+//! corner) produce bit-identical boundary directions: no light leaks through
+//! corners. Directions are ordered with a pseudo-angle (the "diamond angle"),
+//! monotone in the true angle and needing one division instead of an `atan2`.
+//!
+//! [`TileTree`] gives every free region of every 8x8 tile a conservative list
+//! of candidate edges, refined down a quadtree: an edge is dropped only when
+//! that is proven — it faces away from the whole region, its free side
+//! belongs to another region of free space, it lies beyond the falloff reach,
+//! or one straight wall run blocks every segment from the region to it (an
+//! exact test in integer arithmetic). Regions whose list stays long use the
+//! walk instead of the sweep.
 
 use crate::geometry::{Edge, Geometry, Normal, Run};
 
@@ -44,21 +54,56 @@ pub struct Span {
     pub k1: f64,
 }
 
+/// A front-facing edge (or the part of it on one side of the cut ray) as
+/// seen from the query point.
 #[derive(Clone, Copy, Debug)]
 struct Piece {
     edge: u32,
-    /// In local coordinates: the piece lies on `u = c` (if `u_const`) or `v = c`.
+    /// In local coordinates the piece lies on `u = c` (if `u_const`) or `v = c`.
     u_const: bool,
     c: f64,
-    /// Clipped extent along the edge's own axis, in global coordinates.
-    s_lo: f64,
-    s_hi: f64,
-    /// Pseudo-angles of the piece's ends and their axis coordinates, so a
-    /// span that ends at the piece's own end uses the exact coordinate.
+    /// Pseudo-angles of its ends (`ka < kb`), their axis coordinates on the
+    /// edge and their global positions.
     ka: f64,
-    sa: f64,
     kb: f64,
+    sa: f64,
     sb: f64,
+    va: [f64; 2],
+    vb: [f64; 2],
+}
+
+impl Piece {
+    /// Ray parameter of the piece's line along local direction `(du, dv)`.
+    #[inline]
+    fn t(&self, du: f64, dv: f64) -> f64 {
+        if self.u_const { self.c / du } else { self.c / dv }
+    }
+
+    /// Distance from the query point to the piece along pseudo-angle `k`.
+    #[inline]
+    fn distance_at(&self, k: f64) -> f64 {
+        let (du, dv) = diamond_dir(k);
+        self.t(du, dv) * (du * du + dv * dv).sqrt()
+    }
+
+    /// Axis coordinate on the piece's edge of the ray through `v` (pseudo-angle `k`).
+    fn axis_at(&self, e: &Edge, p: [f64; 2], k: f64, v: [f64; 2]) -> f64 {
+        if k == self.ka {
+            return self.sa;
+        }
+        if k == self.kb {
+            return self.sb;
+        }
+        let line = e.line();
+        let s = if e.normal.is_vertical_edge() {
+            if v[0] == line { v[1] } else { p[1] + (v[1] - p[1]) * (line - p[0]) / (v[0] - p[0]) }
+        } else if v[1] == line {
+            v[0]
+        } else {
+            p[0] + (v[0] - p[0]) * (line - p[1]) / (v[1] - p[1])
+        };
+        s.clamp(self.sa.min(self.sb), self.sa.max(self.sb))
+    }
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -68,14 +113,6 @@ struct Event {
     vertex: [f64; 2],
     piece: u32,
     insert: bool,
-}
-
-/// Reusable buffers for sweeps (one per thread).
-#[derive(Default)]
-pub struct Sweeper {
-    pieces: Vec<Piece>,
-    events: Vec<Event>,
-    active: Vec<u32>,
 }
 
 /// Diamond pseudo-angle of direction `(u, v)`: `0` at `+u`, increasing
@@ -105,18 +142,363 @@ fn diamond_dir(k: f64) -> (f64, f64) {
     }
 }
 
-/// Local frame of a view: `u` and `v` axes as global unit vectors. For a
-/// half view `v` is the normal, so the visible half-plane is `v > 0`.
-#[inline]
-fn frame(view: View) -> ([f64; 2], [f64; 2]) {
-    match view {
-        View::Full => ([1.0, 0.0], [0.0, 1.0]),
-        View::Half(n) => {
-            let nv = n.vec();
-            let t = n.travel();
-            ([t[0] as f64, t[1] as f64], [nv[0] as f64, nv[1] as f64])
+/// A query: the point, what it looks into, and its free-space component.
+#[derive(Clone, Copy, Debug)]
+struct Query {
+    p: [f64; 2],
+    full: bool,
+    /// Local frame: `u` and `v` axes as global unit vectors. For a half view
+    /// `v` is the normal, so the visible half-plane is `v > 0`.
+    eu: [f64; 2],
+    ev: [f64; 2],
+    comp: u32,
+}
+
+impl Query {
+    fn new(p: [f64; 2], view: View, comp: u32) -> Query {
+        let (eu, ev) = match view {
+            View::Full => ([1.0, 0.0], [0.0, 1.0]),
+            View::Half(n) => {
+                let nv = n.vec();
+                let t = n.travel();
+                ([t[0] as f64, t[1] as f64], [nv[0] as f64, nv[1] as f64])
+            }
+        };
+        Query { p, full: view == View::Full, eu, ev, comp }
+    }
+
+    #[inline]
+    fn local(&self, q: [f64; 2]) -> (f64, f64) {
+        let d = [q[0] - self.p[0], q[1] - self.p[1]];
+        (d[0] * self.eu[0] + d[1] * self.eu[1], d[0] * self.ev[0] + d[1] * self.ev[1])
+    }
+
+    #[inline]
+    fn global(&self, u: f64, v: f64) -> [f64; 2] {
+        [self.p[0] + u * self.eu[0] + v * self.ev[0], self.p[1] + u * self.eu[1] + v * self.ev[1]]
+    }
+
+    /// Largest pseudo-angle of the view.
+    fn kmax(&self) -> f64 {
+        if self.full { 4.0 } else { 2.0 }
+    }
+
+    /// Appends the pieces of edge `ei` that the query can see at all: front
+    /// facing, same component, inside the half-plane (clipped), split at the
+    /// cut ray `+u` for full views.
+    fn pieces(&self, edges: &[Edge], ei: u32, out: &mut Vec<Piece>) {
+        let e = &edges[ei as usize];
+        if e.component != self.comp || e.front_distance(self.p) <= 0.0 {
+            return;
+        }
+        let (lo, hi) = e.extent();
+        let (a, b) = (e.point_at(lo), e.point_at(hi));
+        let (au, av) = self.local(a);
+        let (bu, bv) = self.local(b);
+        let u_const = au == bu;
+        let c = if u_const { au } else { av };
+        let mut push = |(pu, pv, ps): (f64, f64, f64), (qu, qv, qs): (f64, f64, f64)| {
+            let lower = pv < 0.0 || qv < 0.0;
+            let key = |u: f64, v: f64| if self.full && v == 0.0 && u > 0.0 && lower { 4.0 } else { diamond(u, v) };
+            let (k0, k1) = (key(pu, pv), key(qu, qv));
+            if k0 == k1 {
+                return;
+            }
+            let (v0, v1) = (self.global(pu, pv), self.global(qu, qv));
+            out.push(if k0 < k1 {
+                Piece { edge: ei, u_const, c, ka: k0, kb: k1, sa: ps, sb: qs, va: v0, vb: v1 }
+            } else {
+                Piece { edge: ei, u_const, c, ka: k1, kb: k0, sa: qs, sb: ps, va: v1, vb: v0 }
+            });
+        };
+        let (pa, pb) = ((au, av, lo), (bu, bv, hi));
+        // Where a u-const piece meets v = 0: level with `p` along its axis.
+        let m = (c, 0.0, if e.normal.is_vertical_edge() { self.p[1] } else { self.p[0] });
+        if self.full {
+            if u_const && c > 0.0 && av.min(bv) < 0.0 && av.max(bv) > 0.0 {
+                // Split at the cut ray (+u); the halves meet at v = 0.
+                push(pa, m);
+                push(m, pb);
+            } else {
+                push(pa, pb);
+            }
+        } else if av <= 0.0 && bv <= 0.0 {
+            // Entirely outside the open half-plane v > 0.
+        } else if av >= 0.0 && bv >= 0.0 {
+            push(pa, pb);
+        } else {
+            // Perpendicular to the half-plane's boundary: clip at v = 0.
+            push(m, if av > 0.0 { pa } else { pb });
         }
     }
+}
+
+/// How an axis-aligned box lies as seen from a query.
+enum BoxView {
+    /// The query point is inside (or on) the box.
+    Around,
+    /// Entirely behind a half view.
+    Behind,
+    /// The pseudo-angle range, as one or two `[a, b]` ranges.
+    Ranges([(f64, f64); 2]),
+}
+
+fn box_range(q: &Query, x0: f64, y0: f64, x1: f64, y1: f64) -> BoxView {
+    let p = q.p;
+    if p[0] >= x0 && p[0] <= x1 && p[1] >= y0 && p[1] <= y1 {
+        return BoxView::Around;
+    }
+    let corners = [[x0, y0], [x1, y0], [x0, y1], [x1, y1]];
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    if q.full {
+        // The box holds part of the cut ray (+x from p): the range wraps.
+        if y0 < p[1] && p[1] < y1 && x0 > p[0] {
+            let (mut top, mut bottom) = (0.0f64, 4.0f64);
+            for c in corners {
+                let (u, v) = q.local(c);
+                if v >= 0.0 {
+                    top = top.max(diamond(u, v));
+                } else {
+                    bottom = bottom.min(diamond(u, v));
+                }
+            }
+            return BoxView::Ranges([(0.0, top), (bottom, 4.0)]);
+        }
+        for c in corners {
+            let (u, v) = q.local(c);
+            let k = diamond(u, v);
+            lo = lo.min(k);
+            hi = hi.max(k);
+        }
+    } else {
+        let mut any = false;
+        for c in corners {
+            let (u, v) = q.local(c);
+            // Corners behind the half-plane project onto its boundary.
+            let k = if v > 0.0 {
+                any = true;
+                diamond(u, v)
+            } else if u > 0.0 {
+                0.0
+            } else {
+                2.0
+            };
+            lo = lo.min(k);
+            hi = hi.max(k);
+        }
+        if !any {
+            return BoxView::Behind;
+        }
+    }
+    BoxView::Ranges([(lo, hi), (lo, hi)])
+}
+
+const NONE: u32 = u32::MAX;
+
+/// One interval of the angular buffer, `[previous end, end)`.
+#[derive(Clone, Copy, Debug)]
+struct Iv {
+    end: f64,
+    /// The vertex whose direction is `end`.
+    vend: [f64; 2],
+    /// Nearest piece found so far, or [`NONE`].
+    owner: u32,
+    /// Farthest distance of the owner over the interval (infinite if none).
+    far: f64,
+}
+
+/// The one-dimensional angular buffer of the walk: contiguous intervals of
+/// pseudo-angle covering the view, each owned by the nearest piece found so
+/// far (or none).
+#[derive(Default)]
+struct Coverage {
+    iv: Vec<Iv>,
+    scratch: Vec<Iv>,
+}
+
+impl Coverage {
+    fn reset(&mut self, kmax: f64) {
+        self.iv.clear();
+        self.iv.push(Iv { end: kmax, vend: [0.0; 2], owner: NONE, far: f64::INFINITY });
+    }
+
+    #[inline]
+    fn start(&self, i: usize) -> f64 {
+        if i == 0 { 0.0 } else { self.iv[i - 1].end }
+    }
+
+    /// True when every direction in `[a, b]` already hits something nearer than `dmin`.
+    fn hides(&self, a: f64, b: f64, dmin: f64) -> bool {
+        let mut i = self.iv.partition_point(|v| v.end <= a);
+        while i < self.iv.len() && self.start(i) <= b {
+            let v = &self.iv[i];
+            if v.owner == NONE || !(v.far < dmin) {
+                return false;
+            }
+            i += 1;
+        }
+        true
+    }
+
+    /// Lets piece `pi` take every part of `[ka, kb)` where it is nearer.
+    fn insert(&mut self, pieces: &[Piece], pi: u32) {
+        let pc = pieces[pi as usize];
+        let n = self.iv.len();
+        let first = self.iv.partition_point(|v| v.end <= pc.ka);
+        // Quick rejection: hidden everywhere it overlaps.
+        let mut i = first;
+        let mut wins_any = false;
+        while i < n && self.start(i) < pc.kb {
+            let (lo, hi) = (self.start(i).max(pc.ka), self.iv[i].end.min(pc.kb));
+            let old = self.iv[i].owner;
+            if old == NONE || {
+                let (du, dv) = diamond_dir(0.5 * (lo + hi));
+                let o = &pieces[old as usize];
+                let (tp, to) = (pc.t(du, dv), o.t(du, dv));
+                tp < to || (tp == to && pi < old)
+            } {
+                wins_any = true;
+                break;
+            }
+            i += 1;
+        }
+        if !wins_any {
+            return;
+        }
+        let piece_far = |o: u32, k0: f64, k1: f64| {
+            if o == NONE {
+                f64::INFINITY
+            } else {
+                let p = &pieces[o as usize];
+                p.distance_at(k0).max(p.distance_at(k1))
+            }
+        };
+        // Rebuild the overlapped range (and merge with equal neighbours).
+        let mut a = first;
+        let mut i = first;
+        self.scratch.clear();
+        while i < n && self.start(i) < pc.kb {
+            let (s, v) = (self.start(i), self.iv[i]);
+            let (lo, hi) = (s.max(pc.ka), v.end.min(pc.kb));
+            let wins = v.owner == NONE || {
+                let (du, dv) = diamond_dir(0.5 * (lo + hi));
+                let o = &pieces[v.owner as usize];
+                let (tp, to) = (pc.t(du, dv), o.t(du, dv));
+                tp < to || (tp == to && pi < v.owner)
+            };
+            if lo > s {
+                self.scratch.push(Iv { end: lo, vend: pc.va, owner: v.owner, far: 0.0 });
+            }
+            let vhi = if hi == pc.kb && hi < v.end { pc.vb } else { v.vend };
+            self.scratch.push(Iv { end: hi, vend: vhi, owner: if wins { pi } else { v.owner }, far: 0.0 });
+            if v.end > hi {
+                self.scratch.push(Iv { end: v.end, vend: v.vend, owner: v.owner, far: 0.0 });
+            }
+            i += 1;
+        }
+        let mut b = i;
+        if a > 0 && self.iv[a - 1].owner == self.scratch[0].owner {
+            a -= 1;
+        }
+        if b < n && self.iv[b].owner == self.scratch[self.scratch.len() - 1].owner {
+            self.scratch.push(self.iv[b]);
+            b += 1;
+        }
+        // Consecutive pieces of one owner become one interval.
+        let mut out = Vec::with_capacity(self.scratch.len());
+        let mut seg_start = self.start(a);
+        for (j, t) in self.scratch.iter().enumerate() {
+            if self.scratch.get(j + 1).is_some_and(|next| next.owner == t.owner) {
+                continue;
+            }
+            out.push(Iv { far: piece_far(t.owner, seg_start, t.end), ..*t });
+            seg_start = t.end;
+        }
+        self.iv.splice(a..b, out);
+    }
+}
+
+/// Edges binned into square blocks, with a pyramid of counts above them,
+/// for [`Sweeper::walk`].
+pub struct Blocks {
+    size: i32,
+    /// `(nx, ny)` per level; level 0 are the blocks.
+    dims: Vec<(usize, usize)>,
+    /// Edge counts per node per level.
+    counts: Vec<Vec<u32>>,
+    /// Edges of block `b`: `list[start[b]..start[b + 1]]`.
+    start: Vec<usize>,
+    list: Vec<u32>,
+}
+
+impl Blocks {
+    pub const SIZE: i32 = 8;
+
+    pub fn new(g: &Geometry) -> Blocks {
+        let size = Self::SIZE;
+        let nx = g.width.div_ceil(size as usize).max(1);
+        let ny = g.height.div_ceil(size as usize).max(1);
+        let blocks_of = |e: &Edge| {
+            let (lo, hi) = e.extent();
+            let line = e.line() as i32;
+            let (a0, a1) = (lo as i32 / size, ((hi as i32 + size - 1) / size - 1).max(lo as i32 / size));
+            let l = line / size;
+            (a0, a1, l)
+        };
+        let mut count0 = vec![0usize; nx * ny + 1];
+        let id = |e: &Edge, a: i32, l: i32| {
+            let (bx, by) = if e.normal.is_vertical_edge() { (l, a) } else { (a, l) };
+            by.clamp(0, ny as i32 - 1) as usize * nx + bx.clamp(0, nx as i32 - 1) as usize
+        };
+        for e in &g.edges {
+            let (a0, a1, l) = blocks_of(e);
+            for a in a0..=a1 {
+                count0[id(e, a, l) + 1] += 1;
+            }
+        }
+        for i in 0..nx * ny {
+            count0[i + 1] += count0[i];
+        }
+        let start = count0.clone();
+        let mut fill = count0;
+        let mut list = vec![0u32; start[nx * ny]];
+        for (ei, e) in g.edges.iter().enumerate() {
+            let (a0, a1, l) = blocks_of(e);
+            for a in a0..=a1 {
+                let b = id(e, a, l);
+                list[fill[b]] = ei as u32;
+                fill[b] += 1;
+            }
+        }
+        let mut dims = vec![(nx, ny)];
+        let mut counts = vec![(0..nx * ny).map(|b| (start[b + 1] - start[b]) as u32).collect::<Vec<u32>>()];
+        while dims.last().is_some_and(|&(x, y)| x > 1 || y > 1) {
+            let (px, py) = *dims.last().expect("non-empty");
+            let (cx, cy) = (px.div_ceil(2), py.div_ceil(2));
+            let prev = counts.last().expect("non-empty");
+            let mut c = vec![0u32; cx * cy];
+            for y in 0..py {
+                for x in 0..px {
+                    c[(y / 2) * cx + x / 2] += prev[y * px + x];
+                }
+            }
+            dims.push((cx, cy));
+            counts.push(c);
+        }
+        Blocks { size, dims, counts, start, list }
+    }
+}
+
+/// Reusable buffers for visibility queries (one per thread).
+#[derive(Default)]
+pub struct Sweeper {
+    pieces: Vec<Piece>,
+    events: Vec<Event>,
+    active: Vec<u32>,
+    cover: Coverage,
+    stack: Vec<(u8, u32, u32)>,
+    stamp: Vec<u32>,
+    generation: u32,
 }
 
 impl Sweeper {
@@ -128,66 +510,18 @@ impl Sweeper {
     /// (indices into `edges`) that belong to free-space component `comp`.
     /// Spans are appended to `out` in increasing pseudo-angle.
     pub fn sweep(&mut self, edges: &[Edge], candidates: &[u32], p: [f64; 2], view: View, comp: u32, out: &mut Vec<Span>) {
+        let q = Query::new(p, view, comp);
         self.pieces.clear();
         self.events.clear();
-        let (eu, ev) = frame(view);
-        let local = |q: [f64; 2]| {
-            let d = [q[0] - p[0], q[1] - p[1]];
-            (d[0] * eu[0] + d[1] * eu[1], d[0] * ev[0] + d[1] * ev[1])
-        };
-        let global = |u: f64, v: f64| [p[0] + u * eu[0] + v * ev[0], p[1] + u * eu[1] + v * ev[1]];
-        let full = view == View::Full;
         for &ei in candidates {
-            let e = &edges[ei as usize];
-            if e.component != comp || e.front_distance(p) <= 0.0 {
-                continue;
-            }
-            let (lo, hi) = e.extent();
-            let (a, b) = (e.point_at(lo), e.point_at(hi));
-            let (au, av) = local(a);
-            let (bu, bv) = local(b);
-            let u_const = au == bu;
-            let c = if u_const { au } else { av };
-            // Adds the piece between two local points `(u, v, axis coordinate)`.
-            let mut push = |s: &mut Self, (pu, pv, ps): (f64, f64, f64), (qu, qv, qs): (f64, f64, f64)| {
-                let lower = pv < 0.0 || qv < 0.0;
-                let key = |u: f64, v: f64| {
-                    if full && v == 0.0 && u > 0.0 && lower { 4.0 } else { diamond(u, v) }
-                };
-                let (k0, k1) = (key(pu, pv), key(qu, qv));
-                if k0 == k1 {
-                    return;
-                }
-                let (ka, va, sa, kb, vb, sb) =
-                    if k0 < k1 { (k0, (pu, pv), ps, k1, (qu, qv), qs) } else { (k1, (qu, qv), qs, k0, (pu, pv), ps) };
-                let id = s.pieces.len() as u32;
-                s.pieces.push(Piece { edge: ei, u_const, c, s_lo: sa.min(sb), s_hi: sa.max(sb), ka, sa, kb, sb });
-                s.events.push(Event { key: ka, vertex: global(va.0, va.1), piece: id, insert: true });
-                s.events.push(Event { key: kb, vertex: global(vb.0, vb.1), piece: id, insert: false });
-            };
-            let (pa, pb) = ((au, av, lo), (bu, bv, hi));
-            // Where a u-const piece meets v = 0: level with `p` along its axis.
-            let m = (c, 0.0, if e.normal.is_vertical_edge() { p[1] } else { p[0] });
-            if full {
-                if u_const && c > 0.0 && av.min(bv) < 0.0 && av.max(bv) > 0.0 {
-                    // Split at the cut ray (+u); the halves meet at v = 0.
-                    push(self, pa, m);
-                    push(self, m, pb);
-                } else {
-                    push(self, pa, pb);
-                }
-            } else if av <= 0.0 && bv <= 0.0 {
-                // Entirely outside the open half-plane v > 0.
-                continue;
-            } else if av >= 0.0 && bv >= 0.0 {
-                push(self, pa, pb);
-            } else {
-                // Perpendicular to the half-plane's boundary: clip at v = 0.
-                push(self, m, if av > 0.0 { pa } else { pb });
-            }
+            q.pieces(edges, ei, &mut self.pieces);
         }
-        if self.events.is_empty() {
+        if self.pieces.is_empty() {
             return;
+        }
+        for (id, pc) in self.pieces.iter().enumerate() {
+            self.events.push(Event { key: pc.ka, vertex: pc.va, piece: id as u32, insert: true });
+            self.events.push(Event { key: pc.kb, vertex: pc.vb, piece: id as u32, insert: false });
         }
         self.events.sort_unstable_by(|x, y| x.key.total_cmp(&y.key));
         self.active.clear();
@@ -213,8 +547,7 @@ impl Sweeper {
                 let mut best = u32::MAX;
                 let mut best_t = f64::INFINITY;
                 for &a in &self.active {
-                    let pc = &self.pieces[a as usize];
-                    let t = if pc.u_const { pc.c / du } else { pc.c / dv };
+                    let t = self.pieces[a as usize].t(du, dv);
                     if t < best_t || (t == best_t && a < best) {
                         best_t = t;
                         best = a;
@@ -224,8 +557,7 @@ impl Sweeper {
             } else {
                 None
             };
-            let cur = open.map(|o| o.0);
-            if cur != nearest {
+            if open.map(|o| o.0) != nearest {
                 if let Some((pc, k0, v0)) = open.take() {
                     self.emit(edges, p, pc, k0, v0, key, vertex, out);
                 }
@@ -237,28 +569,100 @@ impl Sweeper {
         debug_assert!(open.is_none(), "the last event closes every span");
     }
 
+    /// The same result as [`Sweeper::sweep`] over all edges, found by walking
+    /// `blocks` from near to far and skipping what is already hidden.
+    pub fn walk(&mut self, edges: &[Edge], blocks: &Blocks, p: [f64; 2], view: View, comp: u32, out: &mut Vec<Span>) {
+        let q = Query::new(p, view, comp);
+        self.pieces.clear();
+        self.cover.reset(q.kmax());
+        if self.stamp.len() != edges.len() {
+            self.stamp = vec![0; edges.len()];
+            self.generation = 0;
+        }
+        self.generation = self.generation.wrapping_add(1);
+        if self.generation == 0 {
+            self.stamp.iter_mut().for_each(|s| *s = 0);
+            self.generation = 1;
+        }
+        let top = blocks.dims.len() - 1;
+        self.stack.clear();
+        self.stack.push((top as u8, 0, 0));
+        while let Some((level, x, y)) = self.stack.pop() {
+            let (nx, _) = blocks.dims[level as usize];
+            if blocks.counts[level as usize][y as usize * nx + x as usize] == 0 {
+                continue;
+            }
+            let side = (blocks.size << level) as f64;
+            let (x0, y0) = (x as f64 * side, y as f64 * side);
+            let (x1, y1) = (x0 + side, y0 + side);
+            match box_range(&q, x0, y0, x1, y1) {
+                BoxView::Around => {}
+                BoxView::Behind => continue,
+                BoxView::Ranges(ranges) => {
+                    let dx = (x0 - p[0]).max(p[0] - x1).max(0.0);
+                    let dy = (y0 - p[1]).max(p[1] - y1).max(0.0);
+                    let dmin = (dx * dx + dy * dy).sqrt();
+                    if ranges.iter().all(|&(a, b)| self.cover.hides(a, b, dmin)) {
+                        continue;
+                    }
+                }
+            }
+            if level == 0 {
+                let b = y as usize * nx + x as usize;
+                for &ei in &blocks.list[blocks.start[b]..blocks.start[b + 1]] {
+                    if self.stamp[ei as usize] == self.generation {
+                        continue;
+                    }
+                    self.stamp[ei as usize] = self.generation;
+                    let from = self.pieces.len();
+                    q.pieces(edges, ei, &mut self.pieces);
+                    for pi in from..self.pieces.len() {
+                        self.cover.insert(&self.pieces, pi as u32);
+                    }
+                }
+                continue;
+            }
+            // Children, nearest popped first.
+            let (cnx, cny) = blocks.dims[level as usize - 1];
+            let mut kids: [(f64, u32, u32); 4] = [(f64::INFINITY, 0, 0); 4];
+            let mut k = 0;
+            for (cx, cy) in [(2 * x, 2 * y), (2 * x + 1, 2 * y), (2 * x, 2 * y + 1), (2 * x + 1, 2 * y + 1)] {
+                if (cx as usize) < cnx && (cy as usize) < cny {
+                    let half = side / 2.0;
+                    let (mx, my) = ((cx as f64 + 0.5) * half, (cy as f64 + 0.5) * half);
+                    kids[k] = ((mx - p[0]).powi(2) + (my - p[1]).powi(2), cx, cy);
+                    k += 1;
+                }
+            }
+            kids[..k].sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+            for &(_, cx, cy) in &kids[..k] {
+                self.stack.push((level - 1, cx, cy));
+            }
+        }
+        // Read the spans off the buffer.
+        let cover = &self.cover;
+        for i in 0..cover.iv.len() {
+            let o = cover.iv[i].owner;
+            if o == NONE {
+                continue;
+            }
+            let pc = &self.pieces[o as usize];
+            let e = &edges[pc.edge as usize];
+            let (k0, k1) = (cover.start(i), cover.iv[i].end);
+            let v0 = if i == 0 { pc.va } else { cover.iv[i - 1].vend };
+            let (a, b) = (pc.axis_at(e, p, k0, v0), pc.axis_at(e, p, k1, cover.iv[i].vend));
+            let (s0, s1) = if a <= b { (a, b) } else { (b, a) };
+            if s1 > s0 {
+                out.push(Span { edge: pc.edge, s0, s1, k0, k1 });
+            }
+        }
+    }
+
     #[allow(clippy::too_many_arguments)]
     fn emit(&self, edges: &[Edge], p: [f64; 2], piece: u32, k0: f64, v0: [f64; 2], k1: f64, v1: [f64; 2], out: &mut Vec<Span>) {
         let pc = &self.pieces[piece as usize];
         let e = &edges[pc.edge as usize];
-        let line = e.line();
-        let axis = |k: f64, v: [f64; 2]| -> f64 {
-            if k == pc.ka {
-                return pc.sa;
-            }
-            if k == pc.kb {
-                return pc.sb;
-            }
-            let s = if e.normal.is_vertical_edge() {
-                if v[0] == line { v[1] } else { p[1] + (v[1] - p[1]) * (line - p[0]) / (v[0] - p[0]) }
-            } else if v[1] == line {
-                v[0]
-            } else {
-                p[0] + (v[0] - p[0]) * (line - p[1]) / (v[1] - p[1])
-            };
-            s.clamp(pc.s_lo, pc.s_hi)
-        };
-        let (a, b) = (axis(k0, v0), axis(k1, v1));
+        let (a, b) = (pc.axis_at(e, p, k0, v0), pc.axis_at(e, p, k1, v1));
         let (s0, s1) = if a <= b { (a, b) } else { (b, a) };
         if s1 > s0 {
             out.push(Span { edge: pc.edge, s0, s1, k0, k1 });
@@ -368,8 +772,93 @@ pub struct TileTree<'g> {
     comp_bbox: Vec<Rect>,
 }
 
+/// The free regions of one leaf tile: its free pixels split into pieces that
+/// are 4-connected inside the tile, each with its own candidate edges. A
+/// corridor on one side of a wall is culled without the pixels beyond it.
+pub struct LeafRegions {
+    pub rect: Rect,
+    /// Region of each pixel of `rect`, row-major; `u8::MAX` for solid pixels.
+    pub label: Vec<u8>,
+    pub regions: Vec<Region>,
+}
+
+/// One free region of a leaf tile.
+pub struct Region {
+    /// Bounding box of the region's pixels.
+    pub bbox: Rect,
+    pub component: u32,
+    /// A short candidate list for [`Sweeper::sweep`], or `None`: use [`Sweeper::walk`].
+    pub candidates: Option<Vec<u32>>,
+}
+
+impl LeafRegions {
+    /// The candidates for the free pixel `px` (which must lie in the leaf):
+    /// `Some(list)` to sweep, `None` to walk.
+    pub fn candidates_at(&self, px: [i32; 2]) -> Option<&[u32]> {
+        let w = self.rect.width();
+        let l = self.label[((px[1] - self.rect.y0) * w + px[0] - self.rect.x0) as usize];
+        self.regions.get(l as usize).map_or(Some(&[]), |r| r.candidates.as_deref())
+    }
+}
+
 impl<'g> TileTree<'g> {
     pub const LEAF: i32 = 8;
+
+    /// Longest candidate list a region sweeps; longer ones walk the blocks.
+    pub const SWEEP_MAX: usize = 192;
+    /// Longest list a quadtree node keeps refining; above it the subtree walks.
+    pub const REFINE_MAX: usize = 3000;
+
+    /// Splits leaf `r` into free regions and culls `cands` (if known) for each.
+    fn leaf_regions(&self, r: Rect, cands: Option<&[u32]>) -> LeafRegions {
+        let g = self.geometry;
+        let (w, h) = (r.width(), r.height());
+        let mut label = vec![u8::MAX; (w * h) as usize];
+        let free = |x: i32, y: i32| g.components[y as usize * g.width + x as usize] != u32::MAX;
+        let mut regions = Vec::new();
+        let mut stack = Vec::new();
+        for y0 in 0..h {
+            for x0 in 0..w {
+                if label[(y0 * w + x0) as usize] != u8::MAX || !free(r.x0 + x0, r.y0 + y0) {
+                    continue;
+                }
+                let id = regions.len() as u8;
+                let mut bbox = Rect { x0: i32::MAX, y0: i32::MAX, x1: i32::MIN, y1: i32::MIN };
+                label[(y0 * w + x0) as usize] = id;
+                stack.push((x0, y0));
+                while let Some((x, y)) = stack.pop() {
+                    bbox = Rect {
+                        x0: bbox.x0.min(r.x0 + x),
+                        y0: bbox.y0.min(r.y0 + y),
+                        x1: bbox.x1.max(r.x0 + x + 1),
+                        y1: bbox.y1.max(r.y0 + y + 1),
+                    };
+                    for (dx, dy) in [(-1, 0), (1, 0), (0, -1), (0, 1)] {
+                        let (nx, ny) = (x + dx, y + dy);
+                        if nx >= 0 && ny >= 0 && nx < w && ny < h && label[(ny * w + nx) as usize] == u8::MAX && free(r.x0 + nx, r.y0 + ny) {
+                            label[(ny * w + nx) as usize] = id;
+                            stack.push((nx, ny));
+                        }
+                    }
+                }
+                let component = g.components[(r.y0 + y0) as usize * g.width + (r.x0 + x0) as usize];
+                let candidates = cands.and_then(|cands| {
+                    let mine: Vec<u32> = cands
+                        .iter()
+                        .copied()
+                        .filter(|&ei| {
+                            let e = &g.edges[ei as usize];
+                            e.component == component && bbox.sees_front_of(e)
+                        })
+                        .collect();
+                    let mine = if mine.len() <= 4 * Self::SWEEP_MAX { self.cull_hidden(bbox, mine) } else { mine };
+                    (mine.len() <= Self::SWEEP_MAX).then_some(mine)
+                });
+                regions.push(Region { bbox, component, candidates });
+            }
+        }
+        LeafRegions { rect: r, label, regions }
+    }
 
     pub fn new(geometry: &'g Geometry) -> Self {
         let mut comp_bbox =
@@ -390,14 +879,15 @@ impl<'g> TileTree<'g> {
         TileTree { geometry, leaf: Self::LEAF, comp_bbox }
     }
 
-    /// Calls `visit(tile, candidates)` for every leaf tile for which `wants`
-    /// holds, in parallel. `candidates` is conservative: every edge that any
-    /// point of the tile (pixel centres and points on the tile's edges) can
-    /// see is in it. `reach(e)` bounds how far edge `e` matters.
+    /// Calls `visit(leaf)` for every leaf tile for which `wants` holds, in
+    /// parallel. Each free region of the leaf gets a conservative candidate
+    /// list: every edge that any point of the region (pixel centres and
+    /// points on the sides of its pixels) can see is in it. `reach(e)` bounds
+    /// how far edge `e` matters.
     pub fn for_each_leaf<W, V>(&self, wants: &W, reach: Reach, visit: &V)
     where
         W: Fn(Rect) -> bool + Sync,
-        V: Fn(Rect, &[u32]) + Sync,
+        V: Fn(&LeafRegions) + Sync,
     {
         let g = self.geometry;
         let mut size = self.leaf;
@@ -406,36 +896,38 @@ impl<'g> TileTree<'g> {
         }
         let root = Rect { x0: 0, y0: 0, x1: g.width as i32, y1: g.height as i32 };
         let all: Vec<u32> = (0..g.edges.len() as u32).collect();
-        self.node(root, size, &all, wants, reach, visit);
+        self.node(root, size, Some(&all), wants, reach, visit);
     }
 
-    fn node<W, V>(&self, r: Rect, size: i32, parent: &[u32], wants: &W, reach: Reach, visit: &V)
+    /// `parent`: the parent's candidates, or `None` when they were too many
+    /// to be worth refining (the subtree walks).
+    fn node<W, V>(&self, r: Rect, size: i32, parent: Option<&[u32]>, wants: &W, reach: Reach, visit: &V)
     where
         W: Fn(Rect) -> bool + Sync,
-        V: Fn(Rect, &[u32]) + Sync,
+        V: Fn(&LeafRegions) + Sync,
     {
         if r.is_empty() || !wants(r) {
             return;
         }
         let g = self.geometry;
-        let mut cands: Vec<u32> = parent
-            .iter()
-            .copied()
-            .filter(|&ei| {
-                let e = &g.edges[ei as usize];
-                r.sees_front_of(e) && self.comp_bbox[e.component as usize].intersects(&r) && {
-                    let lim = reach(ei);
-                    lim.is_infinite() || r.distance_to(e) <= lim
-                }
-            })
-            .collect();
-        if size <= 4 * self.leaf {
-            cands = self.cull_hidden(r, cands);
-        }
+        let cands: Option<Vec<u32>> = parent.map(|parent| {
+            parent
+                .iter()
+                .copied()
+                .filter(|&ei| {
+                    let e = &g.edges[ei as usize];
+                    r.sees_front_of(e) && self.comp_bbox[e.component as usize].intersects(&r) && {
+                        let lim = reach(ei);
+                        lim.is_infinite() || r.distance_to(e) <= lim
+                    }
+                })
+                .collect()
+        });
         if size <= self.leaf {
-            visit(r, &cands);
+            visit(&self.leaf_regions(r, cands.as_deref()));
             return;
         }
+        let cands = cands.filter(|c| c.len() <= Self::REFINE_MAX);
         let h = size / 2;
         let kids = [
             Rect { x0: r.x0, y0: r.y0, x1: (r.x0 + h).min(r.x1), y1: (r.y0 + h).min(r.y1) },
@@ -445,7 +937,7 @@ impl<'g> TileTree<'g> {
         ];
         rayon::scope(|s| {
             for k in kids {
-                let cands = &cands;
+                let cands = cands.as_deref();
                 s.spawn(move |_| self.node(k, h, cands, wants, reach, visit));
             }
         });
