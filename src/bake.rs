@@ -8,7 +8,7 @@ use std::time::Instant;
 
 use crate::gather::{self, Kernel, Radiosity};
 use crate::geometry::{self, Geometry};
-use crate::kernel::Falloff;
+use crate::kernel::{Falloff, Reach};
 use crate::level::{Cell, Level};
 use crate::output::Lightmap;
 use crate::quality::{Knobs, Quality};
@@ -187,6 +187,7 @@ pub fn bake(level: &Level, settings: &Settings, progress: &dyn Fn(&str)) -> Resu
     let mut form_factors = None;
     let mut paper_rows: Option<Vec<Vec<(u32, f64)>>> = None;
     let mut point_rows = None;
+    let mut culled_pairs = 0u64;
     if need_bounce {
         progress("form factors");
         let t = Instant::now();
@@ -199,8 +200,11 @@ pub fn bake(level: &Level, settings: &Settings, progress: &dyn Fn(&str)) -> Resu
         };
         let lit = match settings.kernel {
             Kernel::Flatland => {
-                let (ff, points) =
-                    transport::form_factors(&geometry, &patches, settings.knobs.quad, falloff, &|_| f64::INFINITY);
+                // Factors below the preset's bound are not computed (falloff only).
+                let lens: Vec<f64> = edges.iter().map(|e| e.len()).collect();
+                let reach = Reach::new(&lens, &vec![1.0; edges.len()], falloff, 0.5, settings.knobs.reach_bound);
+                let (ff, points, stats) = transport::form_factors(&geometry, &patches, settings.knobs.quad, falloff, &reach);
+                culled_pairs += stats.culled_pairs;
                 let lit = sees_light(&|i| ff.row(i).collect());
                 form_factors = Some(ff);
                 point_rows = Some(points);
@@ -290,6 +294,24 @@ pub fn bake(level: &Level, settings: &Settings, progress: &dyn Fn(&str)) -> Resu
         _ => Vec::new(),
     };
     let rad = Radiosity::new(&patches, &class_b, &slopes, &edge_e);
+    // With falloff, pairs whose light is below the preset's bound (relative
+    // to the brightest emission) are not gathered.
+    let reach = {
+        let e_max = level.materials.iter().zip(&used).filter(|(_, u)| **u).flat_map(|(m, _)| m.emission).fold(0.0, f64::max);
+        let bmax: Vec<f64> = (0..edges.len())
+            .map(|ei| {
+                let mut m: f64 = 0.0;
+                for p in patches.of_edge(ei) {
+                    for c in 0..kk {
+                        m = m.max(rad.patch(&patches, p, c) + rad.slope[p * kk + c].abs() * 0.5 * patches.length(p));
+                    }
+                }
+                m
+            })
+            .collect();
+        let lens: Vec<f64> = edges.iter().map(|e| e.len()).collect();
+        Reach::new(&lens, &bmax, falloff, 1.0 / std::f64::consts::TAU, settings.knobs.reach_bound * e_max)
+    };
     // Free components that no lit edge faces receive nothing: not gathered.
     let mut lit_comp = vec![false; geometry.component_count as usize];
     for (i, e) in edges.iter().enumerate() {
@@ -303,18 +325,39 @@ pub fn bake(level: &Level, settings: &Settings, progress: &dyn Fn(&str)) -> Resu
     if !unreached.is_empty() && kk > 0 {
         skip(&mut skipped, "gather", format!("{} floor pixels in regions no light reaches", unreached.len()));
     }
+    let mut unreached_in_reach = 0usize;
     let values = if kk == 0 || reached.is_empty() {
         Vec::new()
     } else {
         match settings.gather {
             GatherMethod::Fast => {
-                gather::gather(&geometry, &patches, &rad, falloff, settings.kernel, &reached, &|_| f64::INFINITY)
+                let (v, stats) = gather::gather(&geometry, &patches, &rad, falloff, settings.kernel, &reached, &reach);
+                culled_pairs += stats.culled_pairs;
+                unreached_in_reach = stats.unreached as usize;
+                v
             }
             GatherMethod::Naive => {
                 gather::gather_naive(&geometry, &patches, &rad, falloff, settings.kernel, &reached, settings.naive_samples)
             }
         }
     };
+    if unreached_in_reach > 0 {
+        skip(
+            &mut skipped,
+            "gather",
+            format!("{unreached_in_reach} floor pixels beyond the falloff reach of every lit edge (left at 0)"),
+        );
+    }
+    if culled_pairs > 0 {
+        skip(
+            &mut skipped,
+            "falloff reach",
+            format!(
+                "{culled_pairs} edge-point pairs whose light would be below {:e} of the brightest emission",
+                settings.knobs.reach_bound
+            ),
+        );
+    }
     let mut rgb = vec![[0f32; 3]; level.width * level.height];
     for (i, p) in reached.iter().enumerate() {
         let px = &mut rgb[p[1] as usize * level.width + p[0] as usize];
@@ -364,8 +407,8 @@ pub fn bake(level: &Level, settings: &Settings, progress: &dyn Fn(&str)) -> Resu
             form_factor_entries: form_factors
                 .as_ref()
                 .map_or_else(|| paper_rows.as_ref().map_or(0, |r| r.iter().map(Vec::len).sum()), FormFactors::nnz),
-            unreached_pixels: if kk > 0 { unreached.len() } else { floor_pixels.len() },
-            culled_pairs: 0,
+            unreached_pixels: if kk > 0 { unreached.len() + unreached_in_reach } else { floor_pixels.len() },
+            culled_pairs,
         },
         timings,
         solves,

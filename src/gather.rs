@@ -18,7 +18,9 @@ use crate::geometry::{Edge, Geometry};
 use crate::kernel::{Falloff, GatherLine};
 use crate::level::{Cell, Level};
 use crate::transport::{Patches, for_each_visibility};
-use crate::visibility::{Reach, Span, View};
+use crate::kernel::Reach;
+use crate::transport::{VisitStats, edge_distance};
+use crate::visibility::{Span, View};
 
 /// Radiosity in a form the gather can use: `components` values per edge
 /// (uniform emission) and per patch (reflected light `B - E`).
@@ -104,21 +106,32 @@ impl<'a, T> Disjoint<'a, T> {
     }
 }
 
-/// Adds to `acc` the light that pixel centre `p` receives from its visible spans.
+/// Adds to `acc` the light that pixel centre `p` receives from its visible
+/// spans; spans of edges farther than their reach are skipped and counted.
+#[allow(clippy::too_many_arguments)]
 pub fn pixel_light(
     edges: &[Edge],
     patches: &Patches,
     rad: &Radiosity,
     falloff: Option<Falloff>,
     kernel: Kernel,
+    reach: &Reach,
     p: [f64; 2],
     spans: &[Span],
     acc: &mut [f64],
-) {
+) -> u64 {
     let k = rad.components;
+    let mut culled = 0;
     for span in spans {
         let ei = span.edge as usize;
         let e = &edges[ei];
+        if !(rad.edge_emits[ei] || rad.edge_reflects[ei]) {
+            continue;
+        }
+        if reach.radius[ei].is_finite() && reach.radius[ei] < edge_distance(e, p) {
+            culled += 1;
+            continue;
+        }
         if kernel == Kernel::Paper {
             paper_span(edges, patches, rad, falloff, p, span, acc);
             continue;
@@ -154,6 +167,7 @@ pub fn pixel_light(
             });
         }
     }
+    culled
 }
 
 /// Equation 5 of the paper for the patches of one visible span: each patch
@@ -187,7 +201,9 @@ pub fn floor_pixels(level: &Level) -> Vec<[i32; 2]> {
     v
 }
 
-/// Fast gather: light at each of `pixels`, `components` values per pixel.
+/// Fast gather: light at each of `pixels`, `components` values per pixel,
+/// and what was left out (beyond reach, or in regions no lit edge reaches).
+#[allow(clippy::too_many_arguments)]
 pub fn gather(
     geometry: &Geometry,
     patches: &Patches,
@@ -195,21 +211,30 @@ pub fn gather(
     falloff: Option<Falloff>,
     kernel: Kernel,
     pixels: &[[i32; 2]],
-    reach: Reach,
-) -> Vec<f64> {
+    reach: &Reach,
+) -> (Vec<f64>, VisitStats) {
     let k = rad.components;
     let mut out = vec![0.0; pixels.len() * k];
     let pos: Vec<[f64; 2]> = pixels.iter().map(|p| [p[0] as f64 + 0.5, p[1] as f64 + 0.5]).collect();
     let shared = Disjoint::new(&mut out);
-    for_each_visibility(geometry, &pos, pixels, &|_| View::Full, reach, &|i, spans| {
+    let culled = std::sync::atomic::AtomicU64::new(0);
+    let lit = |e: u32, dist: f64| {
+        let e = e as usize;
+        (rad.edge_emits[e] || rad.edge_reflects[e]) && dist <= reach.radius[e]
+    };
+    let mut stats = for_each_visibility(geometry, &pos, pixels, &|_| View::Full, reach, Some(&lit), &|i, spans| {
         let mut acc = vec![0.0; k];
-        pixel_light(&geometry.edges, patches, rad, falloff, kernel, pos[i], spans, &mut acc);
+        let c = pixel_light(&geometry.edges, patches, rad, falloff, kernel, reach, pos[i], spans, &mut acc);
+        if c > 0 {
+            culled.fetch_add(c, std::sync::atomic::Ordering::Relaxed);
+        }
         for (c, v) in acc.into_iter().enumerate() {
             // SAFETY: each pixel index is visited exactly once.
             unsafe { shared.write(i * k + c, v) };
         }
     });
-    out
+    stats.culled_pairs += culled.into_inner();
+    (out, stats)
 }
 
 /// Does the segment `p -> q` touch edge `e` (closed segments)?

@@ -41,6 +41,66 @@ impl Falloff {
     }
 }
 
+/// How far each edge's light matters under falloff.
+///
+/// An edge of length `L` whose radiosity is at most `B` adds at most
+/// `B * w(r) * min(pi, L / r) / (2 pi)` to a pixel at distance `r` (the
+/// weight is largest at the nearest point and the edge subtends at most
+/// `min(pi, L / r)`). Beyond the distance where that bound falls below a
+/// threshold the pair is not computed. An edge is dropped from a tile
+/// altogether only beyond [`Reach::max`], the largest radius of any edge:
+/// nearer than that it may still hide a brighter edge behind it.
+#[derive(Clone, Debug)]
+pub struct Reach {
+    /// Per edge: beyond this distance its contribution is below the threshold.
+    pub radius: Vec<f64>,
+    /// Largest radius over all edges.
+    pub max: f64,
+}
+
+impl Reach {
+    /// No culling at all.
+    pub fn unlimited(edges: usize) -> Reach {
+        Reach { radius: vec![f64::INFINITY; edges], max: f64::INFINITY }
+    }
+
+    /// Radii for edges of lengths `len` with largest radiosity `bmax`, for the
+    /// bound `scale * B * w(r) * min(pi, L / r) <= threshold` (`scale` is
+    /// `1 / (2 pi)` for the gather, `1 / 2` for form factors). No falloff or a
+    /// zero threshold means unlimited.
+    pub fn new(len: &[f64], bmax: &[f64], falloff: Option<Falloff>, scale: f64, threshold: f64) -> Reach {
+        let Some(f) = falloff.filter(|_| threshold > 0.0) else {
+            return Reach::unlimited(len.len());
+        };
+        let bound = |b: f64, l: f64, r: f64| scale * b * f.weight(r) * std::f64::consts::PI.min(l / r);
+        let radius: Vec<f64> = len
+            .iter()
+            .zip(bmax)
+            .map(|(&l, &b)| {
+                if b <= 0.0 {
+                    return 0.0;
+                }
+                // The bound decreases with r: bracket, then bisect.
+                let mut hi = f.sqrt_a.max(l).max(1.0);
+                while bound(b, l, hi) > threshold {
+                    hi *= 2.0;
+                    if hi > 1e12 {
+                        return f64::INFINITY;
+                    }
+                }
+                let mut lo = 0.0;
+                for _ in 0..60 {
+                    let mid = 0.5 * (lo + hi);
+                    if bound(b, l, mid) > threshold { lo = mid } else { hi = mid }
+                }
+                hi
+            })
+            .collect();
+        let max = radius.iter().copied().fold(0.0, f64::max);
+        Reach { radius, max }
+    }
+}
+
 /// The antiderivatives of the gather integrands along a line at distance `d`:
 /// `F(t)` of `w d psi` (uniform radiosity) and `T(t)` of `t w d psi` (the
 /// linear part of a patch's radiosity; `integral t w d psi = d/2 ln(r^2 / (A + r^2))`,
@@ -205,6 +265,22 @@ mod tests {
         let n = 200_000;
         let h = (p1 - p0) / n as f64;
         (0..n).map(|i| p0 + (i as f64 + 0.5) * h).map(|psi| f(psi, d / psi.cos()) * h).sum()
+    }
+
+    #[test]
+    fn reach_radius_is_where_the_bound_meets_the_threshold() {
+        let f = Falloff::new(20.0);
+        let reach = Reach::new(&[4.0, 40.0, 4.0], &[10.0, 10.0, 0.0], Some(f), 0.5 / std::f64::consts::PI, 1e-3);
+        for (i, (l, b)) in [(4.0, 10.0), (40.0, 10.0)].into_iter().enumerate() {
+            let r = reach.radius[i];
+            let bound = |r: f64| 10.0 * f.weight(r) * std::f64::consts::PI.min(l / r) / std::f64::consts::TAU;
+            assert!((bound(r) - 1e-3).abs() < 1e-9, "{r}");
+            assert!(b > 0.0);
+        }
+        assert!(reach.radius[1] > reach.radius[0], "longer edges reach farther");
+        assert_eq!(reach.radius[2], 0.0, "dark edges reach nowhere");
+        assert_eq!(reach.max, reach.radius[1]);
+        assert!(Reach::new(&[4.0], &[1.0], None, 1.0, 1e-3).max.is_infinite());
     }
 
     #[test]

@@ -49,7 +49,8 @@ pub fn form_factors(g: &Geometry, patches: &Patches, falloff: Option<Falloff>) -
     // k-th sample of i sees.
     let visible: Vec<std::sync::Mutex<Vec<u32>>> = (0..n * SAMPLES).map(|_| Default::default()).collect();
     let view = |i: usize| View::Half(edges[patches.edge[i / SAMPLES] as usize].normal);
-    for_each_visibility(g, &pos, &pixel, &view, &|_| f64::INFINITY, &|q, spans| {
+    let unlimited = crate::kernel::Reach::unlimited(edges.len());
+    for_each_visibility(g, &pos, &pixel, &view, &unlimited, None, &|q, spans: &[crate::visibility::Span]| {
         let (i, k) = (q / SAMPLES, q % SAMPLES);
         let x = pos[q];
         let mut out = Vec::new();

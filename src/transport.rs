@@ -26,7 +26,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::geometry::{Edge, Geometry, Normal};
 use crate::kernel::{FactorLine, Falloff, gauss_legendre};
-use crate::visibility::{Blocks, Rect, Reach, Span, Sweeper, TileTree, View};
+use crate::kernel::Reach;
+use crate::visibility::{Blocks, Rect, Span, Sweeper, TileTree, View};
 
 /// Patches: every edge cut into equal pieces.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -123,6 +124,7 @@ pub fn normal_vec(n: Normal) -> [f64; 2] {
 
 /// The factors from point `x` on an edge with normal `nx` to every patch it
 /// sees, appended to `out` as `(patch, K)`; `spans` is the point's visibility.
+#[allow(clippy::too_many_arguments)]
 pub fn point_factors(
     edges: &[Edge],
     patches: &Patches,
@@ -130,12 +132,18 @@ pub fn point_factors(
     nx: Normal,
     spans: &[Span],
     falloff: Option<Falloff>,
+    reach: &Reach,
     out: &mut Vec<(u32, f64)>,
-) {
+) -> u64 {
     let nxv = normal_vec(nx);
+    let mut culled = 0;
     for span in spans {
         let e = &edges[span.edge as usize];
         let d = e.front_distance(x);
+        if reach.radius[span.edge as usize] < edge_distance(e, x) {
+            culled += 1;
+            continue;
+        }
         let nj = normal_vec(e.normal);
         let tj = axis_vec(e.normal);
         let alpha = -(nxv[0] * nj[0] + nxv[1] * nj[1]);
@@ -156,6 +164,17 @@ pub fn point_factors(
             }
         });
     }
+    culled
+}
+
+/// Distance from point `p` to edge `e`.
+#[inline]
+pub fn edge_distance(e: &Edge, p: [f64; 2]) -> f64 {
+    let (lo, hi) = e.extent();
+    let s = if e.normal.is_vertical_edge() { p[1] } else { p[0] };
+    let along = (lo - s).max(s - hi).max(0.0);
+    let d = e.front_distance(p);
+    (d * d + along * along).sqrt()
 }
 
 /// The form factors, stored as the symmetric matrix `S` (full storage, CSR)
@@ -344,10 +363,11 @@ impl PointGrid {
         PointGrid { width, leaves_x, leaf, sat, start, order }
     }
 
-    pub fn any_in(&self, r: Rect) -> bool {
+    /// Number of points in the rectangle.
+    pub fn count_in(&self, r: Rect) -> u64 {
         let w = self.width + 1;
         let at = |x: i32, y: i32| self.sat[y as usize * w + x as usize] as i64;
-        at(r.x1, r.y1) - at(r.x0, r.y1) - at(r.x1, r.y0) + at(r.x0, r.y0) > 0
+        (at(r.x1, r.y1) - at(r.x0, r.y1) - at(r.x1, r.y0) + at(r.x0, r.y0)) as u64
     }
 
     /// Points of the leaf tile whose top-left pixel is `(r.x0, r.y0)`.
@@ -361,38 +381,69 @@ thread_local! {
     static SWEEPER: RefCell<(Sweeper, Vec<Span>)> = RefCell::new((Sweeper::new(), Vec::new()));
 }
 
+/// What [`for_each_visibility`] left out.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct VisitStats {
+    /// (edge, point) pairs dropped because the edge lies beyond every reach.
+    pub culled_pairs: u64,
+    /// Points whose region sees no contributing edge: reported with no spans.
+    pub unreached: u64,
+}
+
 /// Runs `f(point index, spans)` for every query point, with the exact
 /// visibility of that point, in parallel over leaf tiles. `pixel[i]` is the
 /// free pixel a point belongs to, `pos[i]` its position, `view[i]` its view.
+/// Edges beyond `reach.max` are left out. When `contributes(edge, distance)`
+/// is given and no candidate of a point's region contributes at its distance
+/// from the region, the point gets no spans without a visibility query.
 pub fn for_each_visibility<F>(
     geometry: &Geometry,
     pos: &[[f64; 2]],
     pixel: &[[i32; 2]],
     view: &(dyn Fn(usize) -> View + Sync),
-    reach: Reach,
+    reach: &Reach,
+    contributes: Option<&(dyn Fn(u32, f64) -> bool + Sync)>,
     f: &F,
-) where
+) -> VisitStats
+where
     F: Fn(usize, &[Span]) + Sync,
 {
     let tree = TileTree::new(geometry);
     let blocks = Blocks::new(geometry);
     let grid = PointGrid::new(geometry.width, geometry.height, tree.leaf as usize, pixel);
-    tree.for_each_leaf(&|r| grid.any_in(r), reach, &|leaf| {
+    let unreached = std::sync::atomic::AtomicU64::new(0);
+    let culled_pairs = tree.for_each_leaf(&|r| grid.count_in(r), reach.max, &|leaf| {
+        // Regions with a known list and nothing in it that contributes.
+        let dark: Vec<bool> = leaf
+            .regions
+            .iter()
+            .map(|r| match (contributes, &r.candidates) {
+                (Some(c), Some(list)) => !list.iter().any(|&e| c(e, r.bbox.distance_to(&geometry.edges[e as usize]))),
+                _ => false,
+            })
+            .collect();
         SWEEPER.with(|cell| {
             let (sweeper, spans) = &mut *cell.borrow_mut();
+            let mut skipped = 0;
             for &i in grid.in_leaf(leaf.rect) {
                 let i = i as usize;
                 let px = pixel[i];
                 let comp = geometry.components[px[1] as usize * geometry.width + px[0] as usize];
                 spans.clear();
-                match leaf.candidates_at(px) {
-                    Some(cands) => sweeper.sweep(&geometry.edges, cands, pos[i], view(i), comp, spans),
-                    None => sweeper.walk(&geometry.edges, &blocks, pos[i], view(i), comp, spans),
+                if leaf.region_at(px).is_some_and(|r| dark[r]) {
+                    skipped += 1;
+                } else {
+                    match leaf.candidates_at(px) {
+                        Some(cands) => sweeper.sweep(&geometry.edges, cands, pos[i], view(i), comp, spans),
+                        None => sweeper.walk(&geometry.edges, &blocks, pos[i], view(i), comp, reach.max, spans),
+                    }
                 }
                 f(i, spans);
             }
+            unreached.fetch_add(skipped, std::sync::atomic::Ordering::Relaxed);
         })
     });
+    VisitStats { culled_pairs, unreached: unreached.into_inner() }
 }
 
 /// Computes the form factors with `quad` Gauss-Legendre points per patch,
@@ -402,8 +453,8 @@ pub fn form_factors(
     patches: &Patches,
     quad: usize,
     falloff: Option<Falloff>,
-    reach: Reach,
-) -> (FormFactors, PointRows) {
+    reach: &Reach,
+) -> (FormFactors, PointRows, VisitStats) {
     let edges = &geometry.edges;
     let (xs, ws) = gauss_legendre(quad);
     let q = xs.len();
@@ -422,11 +473,14 @@ pub fn form_factors(
     }
     let results: Vec<std::sync::Mutex<Vec<(u32, f64)>>> = (0..n * q).map(|_| Default::default()).collect();
     let view = |i: usize| View::Half(edges[patches.edge[i / q] as usize].normal);
-    for_each_visibility(geometry, &pos, &pixel, &view, reach, &|i, spans| {
+    let culled = std::sync::atomic::AtomicU64::new(0);
+    let mut stats = for_each_visibility(geometry, &pos, &pixel, &view, reach, None, &|i, spans| {
         let mut out = Vec::new();
-        point_factors(edges, patches, pos[i], edges[patches.edge[i / q] as usize].normal, spans, falloff, &mut out);
+        let c = point_factors(edges, patches, pos[i], edges[patches.edge[i / q] as usize].normal, spans, falloff, reach, &mut out);
+        culled.fetch_add(c, std::sync::atomic::Ordering::Relaxed);
         *results[i].lock().expect("no panics while holding the lock") = out;
     });
+    stats.culled_pairs += culled.into_inner();
     let rows: Vec<Vec<(u32, f64)>> = (0..n)
         .into_par_iter()
         .map(|p| {
@@ -455,5 +509,5 @@ pub fn form_factors(
         points.row_ptr.push(points.col.len());
     }
     let len: Vec<f64> = (0..n).map(|p| patches.length(p)).collect();
-    (FormFactors::from_raw_rows(rows, &len), points)
+    (FormFactors::from_raw_rows(rows, &len), points, stats)
 }

@@ -569,9 +569,20 @@ impl Sweeper {
         debug_assert!(open.is_none(), "the last event closes every span");
     }
 
-    /// The same result as [`Sweeper::sweep`] over all edges, found by walking
-    /// `blocks` from near to far and skipping what is already hidden.
-    pub fn walk(&mut self, edges: &[Edge], blocks: &Blocks, p: [f64; 2], view: View, comp: u32, out: &mut Vec<Span>) {
+    /// The same result as [`Sweeper::sweep`] over all edges within
+    /// `reach_max`, found by walking `blocks` from near to far and skipping
+    /// what is already hidden.
+    #[allow(clippy::too_many_arguments)]
+    pub fn walk(
+        &mut self,
+        edges: &[Edge],
+        blocks: &Blocks,
+        p: [f64; 2],
+        view: View,
+        comp: u32,
+        reach_max: f64,
+        out: &mut Vec<Span>,
+    ) {
         let q = Query::new(p, view, comp);
         self.pieces.clear();
         self.cover.reset(q.kmax());
@@ -595,13 +606,16 @@ impl Sweeper {
             let side = (blocks.size << level) as f64;
             let (x0, y0) = (x as f64 * side, y as f64 * side);
             let (x1, y1) = (x0 + side, y0 + side);
+            let dx = (x0 - p[0]).max(p[0] - x1).max(0.0);
+            let dy = (y0 - p[1]).max(p[1] - y1).max(0.0);
+            let dmin = (dx * dx + dy * dy).sqrt();
+            if dmin > reach_max {
+                continue;
+            }
             match box_range(&q, x0, y0, x1, y1) {
                 BoxView::Around => {}
                 BoxView::Behind => continue,
                 BoxView::Ranges(ranges) => {
-                    let dx = (x0 - p[0]).max(p[0] - x1).max(0.0);
-                    let dy = (y0 - p[1]).max(p[1] - y1).max(0.0);
-                    let dmin = (dx * dx + dy * dy).sqrt();
                     if ranges.iter().all(|&(a, b)| self.cover.hides(a, b, dmin)) {
                         continue;
                     }
@@ -760,8 +774,8 @@ pub fn run_hides(r: &Rect, e: &Edge, s: &Run) -> bool {
     true
 }
 
-/// How far each edge's light matters, by edge index (`f64::INFINITY`: everywhere).
-pub type Reach<'a> = &'a (dyn Fn(u32) -> f64 + Sync);
+/// Query points per rectangle, to weigh culled pairs (0: nothing to do there).
+pub type Count<'a> = &'a (dyn Fn(Rect) -> u64 + Sync);
 
 /// Candidate edge lists for square tiles of pixels.
 pub struct TileTree<'g> {
@@ -792,6 +806,13 @@ pub struct Region {
 }
 
 impl LeafRegions {
+    /// The region of the free pixel `px` (which must lie in the leaf).
+    pub fn region_at(&self, px: [i32; 2]) -> Option<usize> {
+        let w = self.rect.width();
+        let l = self.label[((px[1] - self.rect.y0) * w + px[0] - self.rect.x0) as usize];
+        (l != u8::MAX).then_some(l as usize)
+    }
+
     /// The candidates for the free pixel `px` (which must lie in the leaf):
     /// `Some(list)` to sweep, `None` to walk.
     pub fn candidates_at(&self, px: [i32; 2]) -> Option<&[u32]> {
@@ -879,14 +900,14 @@ impl<'g> TileTree<'g> {
         TileTree { geometry, leaf: Self::LEAF, comp_bbox }
     }
 
-    /// Calls `visit(leaf)` for every leaf tile for which `wants` holds, in
-    /// parallel. Each free region of the leaf gets a conservative candidate
-    /// list: every edge that any point of the region (pixel centres and
-    /// points on the sides of its pixels) can see is in it. `reach(e)` bounds
-    /// how far edge `e` matters.
-    pub fn for_each_leaf<W, V>(&self, wants: &W, reach: Reach, visit: &V)
+    /// Calls `visit(leaf)` for every leaf tile holding query points
+    /// (`count(rect) > 0`), in parallel. Each free region of the leaf gets a
+    /// conservative candidate list: every edge that any point of the region
+    /// (pixel centres and points on the sides of its pixels) can see and that
+    /// is within `reach_max` is in it. Returns the number of (edge, point)
+    /// pairs dropped for being beyond `reach_max`.
+    pub fn for_each_leaf<V>(&self, count: Count, reach_max: f64, visit: &V) -> u64
     where
-        W: Fn(Rect) -> bool + Sync,
         V: Fn(&LeafRegions) + Sync,
     {
         let g = self.geometry;
@@ -896,33 +917,50 @@ impl<'g> TileTree<'g> {
         }
         let root = Rect { x0: 0, y0: 0, x1: g.width as i32, y1: g.height as i32 };
         let all: Vec<u32> = (0..g.edges.len() as u32).collect();
-        self.node(root, size, Some(&all), wants, reach, visit);
+        let culled = std::sync::atomic::AtomicU64::new(0);
+        self.node(root, size, Some(&all), count, reach_max, &culled, visit);
+        culled.into_inner()
     }
 
     /// `parent`: the parent's candidates, or `None` when they were too many
     /// to be worth refining (the subtree walks).
-    fn node<W, V>(&self, r: Rect, size: i32, parent: Option<&[u32]>, wants: &W, reach: Reach, visit: &V)
-    where
-        W: Fn(Rect) -> bool + Sync,
+    #[allow(clippy::too_many_arguments)]
+    fn node<V>(
+        &self,
+        r: Rect,
+        size: i32,
+        parent: Option<&[u32]>,
+        count: Count,
+        reach_max: f64,
+        culled: &std::sync::atomic::AtomicU64,
+        visit: &V,
+    ) where
         V: Fn(&LeafRegions) + Sync,
     {
-        if r.is_empty() || !wants(r) {
+        let points = if r.is_empty() { 0 } else { count(r) };
+        if points == 0 {
             return;
         }
         let g = self.geometry;
+        let mut far = 0u64;
         let cands: Option<Vec<u32>> = parent.map(|parent| {
             parent
                 .iter()
                 .copied()
                 .filter(|&ei| {
                     let e = &g.edges[ei as usize];
-                    r.sees_front_of(e) && self.comp_bbox[e.component as usize].intersects(&r) && {
-                        let lim = reach(ei);
-                        lim.is_infinite() || r.distance_to(e) <= lim
+                    let keep = r.sees_front_of(e) && self.comp_bbox[e.component as usize].intersects(&r);
+                    if keep && reach_max.is_finite() && r.distance_to(e) > reach_max {
+                        far += 1;
+                        return false;
                     }
+                    keep
                 })
                 .collect()
         });
+        if far > 0 {
+            culled.fetch_add(far * points, std::sync::atomic::Ordering::Relaxed);
+        }
         if size <= self.leaf {
             visit(&self.leaf_regions(r, cands.as_deref()));
             return;
@@ -938,7 +976,7 @@ impl<'g> TileTree<'g> {
         rayon::scope(|s| {
             for k in kids {
                 let cands = cands.as_deref();
-                s.spawn(move |_| self.node(k, h, cands, wants, reach, visit));
+                s.spawn(move |_| self.node(k, h, cands, count, reach_max, culled, visit));
             }
         });
     }

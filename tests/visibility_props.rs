@@ -61,7 +61,7 @@ proptest! {
                 let p = [x as f64 + 0.5, y as f64 + 0.5];
                 let (mut a, mut b): (Vec<Span>, Vec<Span>) = (vec![], vec![]);
                 sw.sweep(&g.edges, &all, p, View::Full, comp, &mut a);
-                sw.walk(&g.edges, &blocks, p, View::Full, comp, &mut b);
+                sw.walk(&g.edges, &blocks, p, View::Full, comp, f64::INFINITY, &mut b);
                 prop_assert_eq!(a.len(), b.len(), "pixel ({}, {})", x, y);
                 for (s, t) in a.iter().zip(&b) {
                     prop_assert_eq!(s.edge, t.edge);
@@ -100,7 +100,7 @@ proptest! {
             let p = e.point_at(s);
             let (mut a, mut b): (Vec<Span>, Vec<Span>) = (vec![], vec![]);
             sw.sweep(&g.edges, &all, p, View::Half(e.normal), e.component, &mut a);
-            sw.walk(&g.edges, &blocks, p, View::Half(e.normal), e.component, &mut b);
+            sw.walk(&g.edges, &blocks, p, View::Half(e.normal), e.component, f64::INFINITY, &mut b);
             prop_assert_eq!(a.len(), b.len());
             for (s, t) in a.iter().zip(&b) {
                 prop_assert_eq!(s.edge, t.edge);
@@ -167,7 +167,7 @@ fn same_as_full_sweep(l: &Level) -> Result<(), TestCaseError> {
             }
         }
         let got: Vec<std::sync::Mutex<Vec<Span>>> = (0..pixels.len()).map(|_| Default::default()).collect();
-        for_each_visibility(&g, &pos, &pixels, &|_| View::Full, &|_| f64::INFINITY, &|i, spans| {
+        for_each_visibility(&g, &pos, &pixels, &|_| View::Full, &flatbake::kernel::Reach::unlimited(g.edges.len()), None, &|i, spans: &[Span]| {
             *got[i].lock().unwrap() = spans.to_vec();
         });
         let mut sw = Sweeper::new();
