@@ -378,7 +378,7 @@ impl PointGrid {
 }
 
 thread_local! {
-    static SWEEPER: RefCell<(Sweeper, Vec<Span>)> = RefCell::new((Sweeper::new(), Vec::new()));
+    static SWEEPER: RefCell<(Sweeper, Vec<Span>, Vec<u32>)> = RefCell::new((Sweeper::new(), Vec::new(), Vec::new()));
 }
 
 /// What [`for_each_visibility`] left out.
@@ -423,19 +423,31 @@ where
             })
             .collect();
         SWEEPER.with(|cell| {
-            let (sweeper, spans) = &mut *cell.borrow_mut();
+            let (sweeper, spans, seeds) = &mut *cell.borrow_mut();
             let mut skipped = 0;
+            // Walks are seeded with what the previous point of the region saw.
+            let mut seed_region = usize::MAX;
             for &i in grid.in_leaf(leaf.rect) {
                 let i = i as usize;
                 let px = pixel[i];
                 let comp = geometry.components[px[1] as usize * geometry.width + px[0] as usize];
                 spans.clear();
-                if leaf.region_at(px).is_some_and(|r| dark[r]) {
+                let region = leaf.region_at(px);
+                if region.is_some_and(|r| dark[r]) {
                     skipped += 1;
                 } else {
                     match leaf.candidates_at(px) {
                         Some(cands) => sweeper.sweep(&geometry.edges, cands, pos[i], view(i), comp, spans),
-                        None => sweeper.walk(&geometry.edges, &blocks, pos[i], view(i), comp, reach.max, spans),
+                        None => {
+                            if region != Some(seed_region) {
+                                seeds.clear();
+                            }
+                            sweeper.walk(&geometry.edges, &blocks, pos[i], view(i), comp, reach.max, seeds, spans);
+                            seeds.clear();
+                            seeds.extend(spans.iter().map(|s| s.edge));
+                            seeds.dedup();
+                            seed_region = region.unwrap_or(usize::MAX);
+                        }
                     }
                 }
                 f(i, spans);

@@ -571,7 +571,9 @@ impl Sweeper {
 
     /// The same result as [`Sweeper::sweep`] over all edges within
     /// `reach_max`, found by walking `blocks` from near to far and skipping
-    /// what is already hidden.
+    /// what is already hidden. `seeds` are inserted first: the edges a nearby
+    /// point saw fill the coverage early, so more of the walk is skipped (any
+    /// list gives the same result).
     #[allow(clippy::too_many_arguments)]
     pub fn walk(
         &mut self,
@@ -581,6 +583,7 @@ impl Sweeper {
         view: View,
         comp: u32,
         reach_max: f64,
+        seeds: &[u32],
         out: &mut Vec<Span>,
     ) {
         let q = Query::new(p, view, comp);
@@ -594,6 +597,17 @@ impl Sweeper {
         if self.generation == 0 {
             self.stamp.iter_mut().for_each(|s| *s = 0);
             self.generation = 1;
+        }
+        for &ei in seeds {
+            if self.stamp[ei as usize] == self.generation {
+                continue;
+            }
+            self.stamp[ei as usize] = self.generation;
+            let from = self.pieces.len();
+            q.pieces(edges, ei, &mut self.pieces);
+            for pi in from..self.pieces.len() {
+                self.cover.insert(&self.pieces, pi as u32);
+            }
         }
         let top = blocks.dims.len() - 1;
         self.stack.clear();

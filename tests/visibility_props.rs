@@ -61,7 +61,7 @@ proptest! {
                 let p = [x as f64 + 0.5, y as f64 + 0.5];
                 let (mut a, mut b): (Vec<Span>, Vec<Span>) = (vec![], vec![]);
                 sw.sweep(&g.edges, &all, p, View::Full, comp, &mut a);
-                sw.walk(&g.edges, &blocks, p, View::Full, comp, f64::INFINITY, &mut b);
+                sw.walk(&g.edges, &blocks, p, View::Full, comp, f64::INFINITY, &[], &mut b);
                 prop_assert_eq!(a.len(), b.len(), "pixel ({}, {})", x, y);
                 for (s, t) in a.iter().zip(&b) {
                     prop_assert_eq!(s.edge, t.edge);
@@ -100,7 +100,7 @@ proptest! {
             let p = e.point_at(s);
             let (mut a, mut b): (Vec<Span>, Vec<Span>) = (vec![], vec![]);
             sw.sweep(&g.edges, &all, p, View::Half(e.normal), e.component, &mut a);
-            sw.walk(&g.edges, &blocks, p, View::Half(e.normal), e.component, f64::INFINITY, &mut b);
+            sw.walk(&g.edges, &blocks, p, View::Half(e.normal), e.component, f64::INFINITY, &[], &mut b);
             prop_assert_eq!(a.len(), b.len());
             for (s, t) in a.iter().zip(&b) {
                 prop_assert_eq!(s.edge, t.edge);
