@@ -91,16 +91,18 @@ pub fn plan_channels(level: &Level, used: &[bool]) -> ChannelPlan {
     let mut class_of = [None; 3];
     let mut classes: Vec<usize> = Vec::new();
     for c in 0..3 {
-        let emits = level.materials.iter().zip(used).any(|(m, &u)| u && m.emission[c] > 0.0);
+        let emits = level
+            .materials
+            .iter()
+            .zip(used)
+            .any(|(m, &u)| u && m.emission[c] > 0.0);
         if !emits {
             continue;
         }
         let same = |a: usize, b: usize| {
-            level
-                .materials
-                .iter()
-                .zip(used)
-                .all(|(m, &u)| !u || (m.emission[a] == m.emission[b] && m.reflectance[a] == m.reflectance[b]))
+            level.materials.iter().zip(used).all(|(m, &u)| {
+                !u || (m.emission[a] == m.emission[b] && m.reflectance[a] == m.reflectance[b])
+            })
         };
         match classes.iter().position(|&r| same(r, c)) {
             Some(k) => class_of[c] = Some(k),
@@ -116,12 +118,21 @@ pub fn plan_channels(level: &Level, used: &[bool]) -> ChannelPlan {
 const CHANNEL: [&str; 3] = ["red", "green", "blue"];
 
 /// Bakes a level. `progress(stage)` is called as each stage starts.
-pub fn bake(level: &Level, settings: &Settings, progress: &dyn Fn(&str)) -> Result<Baked, BakeError> {
+pub fn bake(
+    level: &Level,
+    settings: &Settings,
+    progress: &dyn Fn(&str),
+) -> Result<Baked, BakeError> {
     let t_total = Instant::now();
     let mut timings = Timings::default();
     let mut skipped: Vec<Skip> = Vec::new();
     let mut warnings: Vec<String> = level.warnings.clone();
-    let skip = |s: &mut Vec<Skip>, effect: &str, reason: String| s.push(Skip { effect: effect.into(), reason });
+    let skip = |s: &mut Vec<Skip>, effect: &str, reason: String| {
+        s.push(Skip {
+            effect: effect.into(),
+            reason,
+        })
+    };
     let falloff = settings.falloff.map(Falloff::new);
 
     progress("geometry");
@@ -138,27 +149,46 @@ pub fn bake(level: &Level, settings: &Settings, progress: &dyn Fn(&str)) -> Resu
         used[e.material as usize] = true;
     }
     let mat = |p: usize| &level.materials[edges[patches.edge[p] as usize].material as usize];
-    let rho: [Vec<f64>; 3] = std::array::from_fn(|c| (0..np).map(|p| mat(p).reflectance[c]).collect());
-    let emit: [Vec<f64>; 3] = std::array::from_fn(|c| (0..np).map(|p| mat(p).emission[c]).collect());
-    let edge_emit: [Vec<f64>; 3] =
-        std::array::from_fn(|c| edges.iter().map(|e| level.materials[e.material as usize].emission[c]).collect());
+    let rho: [Vec<f64>; 3] =
+        std::array::from_fn(|c| (0..np).map(|p| mat(p).reflectance[c]).collect());
+    let emit: [Vec<f64>; 3] =
+        std::array::from_fn(|c| (0..np).map(|p| mat(p).emission[c]).collect());
+    let edge_emit: [Vec<f64>; 3] = std::array::from_fn(|c| {
+        edges
+            .iter()
+            .map(|e| level.materials[e.material as usize].emission[c])
+            .collect()
+    });
 
     let floor_pixels = gather::floor_pixels(level);
     if floor_pixels.is_empty() {
         warnings.push("the level has no floor pixels: nothing to light".into());
     }
-    if !edges.iter().any(|e| level.materials[e.material as usize].emits()) {
-        warnings.push("the level has no emitter pixels facing free space: the lightmap is black".into());
+    if !edges
+        .iter()
+        .any(|e| level.materials[e.material as usize].emits())
+    {
+        warnings.push(
+            "the level has no emitter pixels facing free space: the lightmap is black".into(),
+        );
     }
 
     let plan = plan_channels(level, &used);
     for c in 0..3 {
         if plan.class_of[c].is_none() {
-            skip(&mut skipped, &format!("{} channel", CHANNEL[c]), "no emission in this channel".into());
+            skip(
+                &mut skipped,
+                &format!("{} channel", CHANNEL[c]),
+                "no emission in this channel".into(),
+            );
         }
     }
     if plan.classes.len() == 1 && plan.class_of.iter().all(Option::is_some) {
-        skip(&mut skipped, "channel solves", "grey scene: 1 solve for 3 channels".into());
+        skip(
+            &mut skipped,
+            "channel solves",
+            "grey scene: 1 solve for 3 channels".into(),
+        );
     } else {
         for c in 0..3 {
             if let Some(k) = plan.class_of[c]
@@ -167,20 +197,30 @@ pub fn bake(level: &Level, settings: &Settings, progress: &dyn Fn(&str)) -> Resu
                 skip(
                     &mut skipped,
                     &format!("{} channel", CHANNEL[c]),
-                    format!("same materials as {}: result shared", CHANNEL[plan.classes[k]]),
+                    format!(
+                        "same materials as {}: result shared",
+                        CHANNEL[plan.classes[k]]
+                    ),
                 );
             }
         }
     }
 
     // Is there any bounce to simulate?
-    let any_reflects = plan.classes.iter().any(|&c| rho[c].iter().any(|&r| r > 0.0));
+    let any_reflects = plan
+        .classes
+        .iter()
+        .any(|&c| rho[c].iter().any(|&r| r > 0.0));
     let mut need_bounce = !plan.classes.is_empty() && any_reflects && np > 0;
     if !plan.classes.is_empty() && !any_reflects {
         skip(&mut skipped, "bounce", "no wall reflects".into());
     }
     if need_bounce && settings.bounces == Some(0) {
-        skip(&mut skipped, "bounce", "bounces = 0: direct light only".into());
+        skip(
+            &mut skipped,
+            "bounce",
+            "bounces = 0: direct light only".into(),
+        );
         need_bounce = false;
     }
 
@@ -195,15 +235,29 @@ pub fn bake(level: &Level, settings: &Settings, progress: &dyn Fn(&str)) -> Resu
         let sees_light = |row: &dyn Fn(usize) -> Vec<(usize, f64)>| {
             (0..np).any(|i| {
                 plan.classes.iter().any(|&c| rho[c][i] > 0.0)
-                    && row(i).iter().any(|&(j, f)| j != i && f > 0.0 && (0..3).any(|c| emit[c][j] > 0.0))
+                    && row(i)
+                        .iter()
+                        .any(|&(j, f)| j != i && f > 0.0 && (0..3).any(|c| emit[c][j] > 0.0))
             })
         };
         let lit = match settings.kernel {
             Kernel::Flatland => {
                 // Factors below the preset's bound are not computed (falloff only).
                 let lens: Vec<f64> = edges.iter().map(|e| e.len()).collect();
-                let reach = Reach::new(&lens, &vec![1.0; edges.len()], falloff, 0.5, settings.knobs.reach_bound);
-                let (ff, points, stats) = transport::form_factors(&geometry, &patches, settings.knobs.quad, falloff, &reach);
+                let reach = Reach::new(
+                    &lens,
+                    &vec![1.0; edges.len()],
+                    falloff,
+                    0.5,
+                    settings.knobs.reach_bound,
+                );
+                let (ff, points, stats) = transport::form_factors(
+                    &geometry,
+                    &patches,
+                    settings.knobs.quad,
+                    falloff,
+                    &reach,
+                );
                 culled_pairs += stats.culled_pairs;
                 let lit = sees_light(&|i| ff.row(i).collect());
                 form_factors = Some(ff);
@@ -220,7 +274,11 @@ pub fn bake(level: &Level, settings: &Settings, progress: &dyn Fn(&str)) -> Resu
         timings.form_factors = t.elapsed().as_secs_f64();
         // Reflecting patches that see no emitter receive nothing: no bounce.
         if !lit {
-            skip(&mut skipped, "bounce", "no reflecting patch sees an emitter".into());
+            skip(
+                &mut skipped,
+                "bounce",
+                "no reflecting patch sees an emitter".into(),
+            );
             need_bounce = false;
         }
     }
@@ -231,7 +289,10 @@ pub fn bake(level: &Level, settings: &Settings, progress: &dyn Fn(&str)) -> Resu
     let mut solves = 0;
     let mut residual: f64 = 0.0;
     let mut solver = "none".to_string();
-    let solve_settings = SolveSettings { tolerance: settings.knobs.tolerance, ..SolveSettings::default() };
+    let solve_settings = SolveSettings {
+        tolerance: settings.knobs.tolerance,
+        ..SolveSettings::default()
+    };
     for &c in &plan.classes {
         if !need_bounce {
             class_b.push(emit[c].clone());
@@ -239,7 +300,8 @@ pub fn bake(level: &Level, settings: &Settings, progress: &dyn Fn(&str)) -> Resu
         }
         solves += 1;
         let b = if let Some(rows) = &paper_rows {
-            let (b, rescaled) = crate::paper::solve(rows, &rho[c], &emit[c], settings.knobs.tolerance);
+            let (b, rescaled) =
+                crate::paper::solve(rows, &rho[c], &emit[c], settings.knobs.tolerance);
             solver = "paper".into();
             if rescaled > 0 {
                 warnings.push(format!(
@@ -250,17 +312,22 @@ pub fn bake(level: &Level, settings: &Settings, progress: &dyn Fn(&str)) -> Resu
             }
             b
         } else {
-            let ff = form_factors.as_ref().expect("flatland kernel builds F when a bounce is needed");
+            let ff = form_factors
+                .as_ref()
+                .expect("flatland kernel builds F when a bounce is needed");
             if let Some(n) = settings.bounces {
                 solver = "bounces".into();
                 solve::truncated(ff, &rho[c], &emit[c], n)
             } else {
-                let s = solve::solve_channel(ff, &rho[c], &emit[c], &solve_settings).map_err(|e| match e {
-                    SolveError::Unbounded { patches: ps } => {
-                        BakeError::Unbounded { message: unbounded_message(&geometry, &patches, &ps, CHANNEL[c]) }
-                    }
-                    other => BakeError::Solve(other),
-                })?;
+                let s =
+                    solve::solve_channel(ff, &rho[c], &emit[c], &solve_settings).map_err(|e| {
+                        match e {
+                            SolveError::Unbounded { patches: ps } => BakeError::Unbounded {
+                                message: unbounded_message(&geometry, &patches, &ps, CHANNEL[c]),
+                            },
+                            other => BakeError::Solve(other),
+                        }
+                    })?;
                 residual = residual.max(s.residual);
                 solver = s.method.to_string();
                 s.radiosity
@@ -288,29 +355,47 @@ pub fn bake(level: &Level, settings: &Settings, progress: &dyn Fn(&str)) -> Resu
     let edge_e: Vec<Vec<f64>> = plan.classes.iter().map(|&c| edge_emit[c].clone()).collect();
     // Linear profiles along patches from the radiosity at the quadrature points.
     let slopes: Vec<Vec<f64>> = match (&point_rows, need_bounce) {
-        (Some(pr), true) => {
-            plan.classes.iter().zip(&class_b).map(|(&c, b)| pr.slopes(&patches, &rho[c], &emit[c], b)).collect()
-        }
+        (Some(pr), true) => plan
+            .classes
+            .iter()
+            .zip(&class_b)
+            .map(|(&c, b)| pr.slopes(&patches, &rho[c], &emit[c], b))
+            .collect(),
         _ => Vec::new(),
     };
     let rad = Radiosity::new(&patches, &class_b, &slopes, &edge_e);
     // With falloff, pairs whose light is below the preset's bound (relative
     // to the brightest emission) are not gathered.
     let reach = {
-        let e_max = level.materials.iter().zip(&used).filter(|(_, u)| **u).flat_map(|(m, _)| m.emission).fold(0.0, f64::max);
+        let e_max = level
+            .materials
+            .iter()
+            .zip(&used)
+            .filter(|(_, u)| **u)
+            .flat_map(|(m, _)| m.emission)
+            .fold(0.0, f64::max);
         let bmax: Vec<f64> = (0..edges.len())
             .map(|ei| {
                 let mut m: f64 = 0.0;
                 for p in patches.of_edge(ei) {
                     for c in 0..kk {
-                        m = m.max(rad.patch(&patches, p, c) + rad.slope[p * kk + c].abs() * 0.5 * patches.length(p));
+                        m = m.max(
+                            rad.patch(&patches, p, c)
+                                + rad.slope[p * kk + c].abs() * 0.5 * patches.length(p),
+                        );
                     }
                 }
                 m
             })
             .collect();
         let lens: Vec<f64> = edges.iter().map(|e| e.len()).collect();
-        Reach::new(&lens, &bmax, falloff, 1.0 / std::f64::consts::TAU, settings.knobs.reach_bound * e_max)
+        Reach::new(
+            &lens,
+            &bmax,
+            falloff,
+            1.0 / std::f64::consts::TAU,
+            settings.knobs.reach_bound * e_max,
+        )
     };
     // Free components that no lit edge faces receive nothing: not gathered.
     let mut lit_comp = vec![false; geometry.component_count as usize];
@@ -319,11 +404,19 @@ pub fn bake(level: &Level, settings: &Settings, progress: &dyn Fn(&str)) -> Resu
             lit_comp[e.component as usize] = true;
         }
     }
-    let (reached, unreached): (Vec<[i32; 2]>, Vec<[i32; 2]>) = floor_pixels
-        .iter()
-        .partition(|p| kk > 0 && lit_comp[geometry.components[p[1] as usize * level.width + p[0] as usize] as usize]);
+    let (reached, unreached): (Vec<[i32; 2]>, Vec<[i32; 2]>) = floor_pixels.iter().partition(|p| {
+        kk > 0
+            && lit_comp[geometry.components[p[1] as usize * level.width + p[0] as usize] as usize]
+    });
     if !unreached.is_empty() && kk > 0 {
-        skip(&mut skipped, "gather", format!("{} floor pixels in regions no light reaches", unreached.len()));
+        skip(
+            &mut skipped,
+            "gather",
+            format!(
+                "{} floor pixels in regions no light reaches",
+                unreached.len()
+            ),
+        );
     }
     let mut unreached_in_reach = 0usize;
     let values = if kk == 0 || reached.is_empty() {
@@ -331,21 +424,37 @@ pub fn bake(level: &Level, settings: &Settings, progress: &dyn Fn(&str)) -> Resu
     } else {
         match settings.gather {
             GatherMethod::Fast => {
-                let (v, stats) = gather::gather(&geometry, &patches, &rad, falloff, settings.kernel, &reached, &reach);
+                let (v, stats) = gather::gather(
+                    &geometry,
+                    &patches,
+                    &rad,
+                    falloff,
+                    settings.kernel,
+                    &reached,
+                    &reach,
+                );
                 culled_pairs += stats.culled_pairs;
                 unreached_in_reach = stats.unreached as usize;
                 v
             }
-            GatherMethod::Naive => {
-                gather::gather_naive(&geometry, &patches, &rad, falloff, settings.kernel, &reached, settings.naive_samples)
-            }
+            GatherMethod::Naive => gather::gather_naive(
+                &geometry,
+                &patches,
+                &rad,
+                falloff,
+                settings.kernel,
+                &reached,
+                settings.naive_samples,
+            ),
         }
     };
     if unreached_in_reach > 0 {
         skip(
             &mut skipped,
             "gather",
-            format!("{unreached_in_reach} floor pixels beyond the falloff reach of every lit edge (left at 0)"),
+            format!(
+                "{unreached_in_reach} floor pixels beyond the falloff reach of every lit edge (left at 0)"
+            ),
         );
     }
     if culled_pairs > 0 {
@@ -368,15 +477,21 @@ pub fn bake(level: &Level, settings: &Settings, progress: &dyn Fn(&str)) -> Resu
         }
     }
     // Solid pixels: mean radiosity of their exposed sides.
-    let radiosity: [Vec<f64>; 3] =
-        std::array::from_fn(|c| plan.class_of[c].map_or_else(|| vec![0.0; np], |k| class_b[k].clone()));
+    let radiosity: [Vec<f64>; 3] = std::array::from_fn(|c| {
+        plan.class_of[c].map_or_else(|| vec![0.0; np], |k| class_b[k].clone())
+    });
     solid_pixels(level, &geometry, &patches, &radiosity, &mut rgb);
     timings.gather = t.elapsed().as_secs_f64();
     timings.total = t_total.elapsed().as_secs_f64();
 
-    if rgb.iter().any(|p| p.iter().any(|v| !v.is_finite() || *v < 0.0)) {
+    if rgb
+        .iter()
+        .any(|p| p.iter().any(|v| !v.is_finite() || *v < 0.0))
+    {
         // Never hand out NaN or negative light: this would be a bug upstream.
-        warnings.push("non-finite or negative light was clamped to 0 (please report this level)".into());
+        warnings.push(
+            "non-finite or negative light was clamped to 0 (please report this level)".into(),
+        );
         for p in &mut rgb {
             for v in p.iter_mut() {
                 if !v.is_finite() || *v < 0.0 {
@@ -404,10 +519,19 @@ pub fn bake(level: &Level, settings: &Settings, progress: &dyn Fn(&str)) -> Resu
             edges: edges.len(),
             patches: np,
             floor_pixels: floor_pixels.len(),
-            form_factor_entries: form_factors
-                .as_ref()
-                .map_or_else(|| paper_rows.as_ref().map_or(0, |r| r.iter().map(Vec::len).sum()), FormFactors::nnz),
-            unreached_pixels: if kk > 0 { unreached.len() + unreached_in_reach } else { floor_pixels.len() },
+            form_factor_entries: form_factors.as_ref().map_or_else(
+                || {
+                    paper_rows
+                        .as_ref()
+                        .map_or(0, |r| r.iter().map(Vec::len).sum())
+                },
+                FormFactors::nnz,
+            ),
+            unreached_pixels: if kk > 0 {
+                unreached.len() + unreached_in_reach
+            } else {
+                floor_pixels.len()
+            },
             culled_pairs,
         },
         timings,
@@ -425,7 +549,11 @@ pub fn bake(level: &Level, settings: &Settings, progress: &dyn Fn(&str)) -> Resu
         patches,
         form_factors,
         radiosity,
-        lightmap: Lightmap { width: level.width, height: level.height, rgb },
+        lightmap: Lightmap {
+            width: level.width,
+            height: level.height,
+            rgb,
+        },
         report,
     })
 }
@@ -434,7 +562,13 @@ pub fn bake(level: &Level, settings: &Settings, progress: &dyn Fn(&str)) -> Resu
 /// effective lengths are used, for which the discrete system conserves energy
 /// exactly; without them nothing is reflected and everything emitted escapes
 /// or is absorbed on first hit.
-pub fn energy_balance(ff: Option<&FormFactors>, patches: &Patches, rho: &[f64], e: &[f64], b: &[f64]) -> (f64, f64, f64) {
+pub fn energy_balance(
+    ff: Option<&FormFactors>,
+    patches: &Patches,
+    rho: &[f64],
+    e: &[f64],
+    b: &[f64],
+) -> (f64, f64, f64) {
     let n = patches.len();
     let Some(ff) = ff else {
         let emitted: f64 = (0..n).map(|p| patches.length(p) * e[p]).sum();
@@ -470,7 +604,13 @@ fn unbounded_message(g: &Geometry, patches: &Patches, ps: &[usize], channel: &st
 }
 
 /// Fills solid pixels with the mean radiosity of their exposed sides.
-fn solid_pixels(level: &Level, g: &Geometry, patches: &Patches, b: &[Vec<f64>; 3], rgb: &mut [[f32; 3]]) {
+fn solid_pixels(
+    level: &Level,
+    g: &Geometry,
+    patches: &Patches,
+    b: &[Vec<f64>; 3],
+    rgb: &mut [[f32; 3]],
+) {
     let w = level.width;
     let mut sum = vec![[0f64; 3]; level.width * level.height];
     let mut count = vec![0u32; level.width * level.height];

@@ -15,10 +15,10 @@
 use std::f64::consts::TAU;
 
 use crate::geometry::{Edge, Geometry};
+use crate::kernel::Reach;
 use crate::kernel::{Falloff, GatherLine};
 use crate::level::{Cell, Level};
 use crate::transport::{Patches, for_each_visibility};
-use crate::kernel::Reach;
 use crate::transport::{VisitStats, edge_distance};
 use crate::visibility::{Span, View};
 
@@ -64,7 +64,14 @@ impl Radiosity {
                 }
             }
         }
-        Radiosity { components: k, edge_emission, reflected, slope, edge_reflects, edge_emits }
+        Radiosity {
+            components: k,
+            edge_emission,
+            reflected,
+            slope,
+            edge_reflects,
+            edge_emits,
+        }
     }
 
     /// Radiosity of patch `p` in component `k`.
@@ -95,7 +102,11 @@ unsafe impl<T: Send> Sync for Disjoint<'_, T> {}
 
 impl<'a, T> Disjoint<'a, T> {
     pub(crate) fn new(s: &'a mut [T]) -> Self {
-        Disjoint { ptr: s.as_mut_ptr(), len: s.len(), _life: std::marker::PhantomData }
+        Disjoint {
+            ptr: s.as_mut_ptr(),
+            len: s.len(),
+            _life: std::marker::PhantomData,
+        }
     }
     /// # Safety
     /// No other task may access index `i` concurrently.
@@ -137,7 +148,11 @@ pub fn pixel_light(
             continue;
         }
         let d = e.front_distance(p);
-        let foot = if e.normal.is_vertical_edge() { p[1] } else { p[0] };
+        let foot = if e.normal.is_vertical_edge() {
+            p[1]
+        } else {
+            p[0]
+        };
         let line = GatherLine::new(d, falloff);
         if rad.edge_emits[ei] {
             let g = line.between(span.s0 - foot, span.s1 - foot) / TAU;
@@ -173,7 +188,15 @@ pub fn pixel_light(
 /// Equation 5 of the paper for the patches of one visible span: each patch
 /// adds `B * A cos(theta) / (A + r^2) * (visible fraction)`, with `theta` and
 /// `r` taken at the patch centre and `A` infinite without falloff.
-fn paper_span(edges: &[Edge], patches: &Patches, rad: &Radiosity, falloff: Option<Falloff>, p: [f64; 2], span: &Span, acc: &mut [f64]) {
+fn paper_span(
+    edges: &[Edge],
+    patches: &Patches,
+    rad: &Radiosity,
+    falloff: Option<Falloff>,
+    p: [f64; 2],
+    span: &Span,
+    acc: &mut [f64],
+) {
     let e = &edges[span.edge as usize];
     let d = e.front_distance(p);
     patches.for_each_piece(edges, span, |pt, a, b| {
@@ -215,24 +238,45 @@ pub fn gather(
 ) -> (Vec<f64>, VisitStats) {
     let k = rad.components;
     let mut out = vec![0.0; pixels.len() * k];
-    let pos: Vec<[f64; 2]> = pixels.iter().map(|p| [p[0] as f64 + 0.5, p[1] as f64 + 0.5]).collect();
+    let pos: Vec<[f64; 2]> = pixels
+        .iter()
+        .map(|p| [p[0] as f64 + 0.5, p[1] as f64 + 0.5])
+        .collect();
     let shared = Disjoint::new(&mut out);
     let culled = std::sync::atomic::AtomicU64::new(0);
     let lit = |e: u32, dist: f64| {
         let e = e as usize;
         (rad.edge_emits[e] || rad.edge_reflects[e]) && dist <= reach.radius[e]
     };
-    let mut stats = for_each_visibility(geometry, &pos, pixels, &|_| View::Full, reach, Some(&lit), &|i, spans| {
-        let mut acc = vec![0.0; k];
-        let c = pixel_light(&geometry.edges, patches, rad, falloff, kernel, reach, pos[i], spans, &mut acc);
-        if c > 0 {
-            culled.fetch_add(c, std::sync::atomic::Ordering::Relaxed);
-        }
-        for (c, v) in acc.into_iter().enumerate() {
-            // SAFETY: each pixel index is visited exactly once.
-            unsafe { shared.write(i * k + c, v) };
-        }
-    });
+    let mut stats = for_each_visibility(
+        geometry,
+        &pos,
+        pixels,
+        &|_| View::Full,
+        reach,
+        Some(&lit),
+        &|i, spans| {
+            let mut acc = vec![0.0; k];
+            let c = pixel_light(
+                &geometry.edges,
+                patches,
+                rad,
+                falloff,
+                kernel,
+                reach,
+                pos[i],
+                spans,
+                &mut acc,
+            );
+            if c > 0 {
+                culled.fetch_add(c, std::sync::atomic::Ordering::Relaxed);
+            }
+            for (c, v) in acc.into_iter().enumerate() {
+                // SAFETY: each pixel index is visited exactly once.
+                unsafe { shared.write(i * k + c, v) };
+            }
+        },
+    );
     stats.culled_pairs += culled.into_inner();
     (out, stats)
 }
@@ -241,16 +285,24 @@ pub fn gather(
 fn segment_hits(p: [f64; 2], q: [f64; 2], e: &Edge) -> bool {
     let a = [e.a[0] as f64, e.a[1] as f64];
     let b = [e.b[0] as f64, e.b[1] as f64];
-    let cross = |o: [f64; 2], u: [f64; 2], v: [f64; 2]| (u[0] - o[0]) * (v[1] - o[1]) - (u[1] - o[1]) * (v[0] - o[0]);
+    let cross = |o: [f64; 2], u: [f64; 2], v: [f64; 2]| {
+        (u[0] - o[0]) * (v[1] - o[1]) - (u[1] - o[1]) * (v[0] - o[0])
+    };
     let d1 = cross(a, b, p);
     let d2 = cross(a, b, q);
     let d3 = cross(p, q, a);
     let d4 = cross(p, q, b);
-    if ((d1 > 0.0 && d2 < 0.0) || (d1 < 0.0 && d2 > 0.0)) && ((d3 > 0.0 && d4 < 0.0) || (d3 < 0.0 && d4 > 0.0)) {
+    if ((d1 > 0.0 && d2 < 0.0) || (d1 < 0.0 && d2 > 0.0))
+        && ((d3 > 0.0 && d4 < 0.0) || (d3 < 0.0 && d4 > 0.0))
+    {
         return true;
     }
     let on = |o: [f64; 2], u: [f64; 2], v: [f64; 2], d: f64| {
-        d == 0.0 && v[0] >= o[0].min(u[0]) && v[0] <= o[0].max(u[0]) && v[1] >= o[1].min(u[1]) && v[1] <= o[1].max(u[1])
+        d == 0.0
+            && v[0] >= o[0].min(u[0])
+            && v[0] <= o[0].max(u[0])
+            && v[1] >= o[1].min(u[1])
+            && v[1] <= o[1].max(u[1])
     };
     on(a, b, p, d1) || on(a, b, q, d2) || on(p, q, a, d3) || on(p, q, b, d4)
 }
@@ -271,47 +323,52 @@ pub fn gather_naive(
     let edges = &geometry.edges;
     let samples = samples.max(1);
     let mut out = vec![0.0; pixels.len() * k];
-    out.par_chunks_mut(k).zip(pixels.par_iter()).for_each(|(acc, px)| {
-        let p = [px[0] as f64 + 0.5, px[1] as f64 + 0.5];
-        let comp = geometry.components[px[1] as usize * geometry.width + px[0] as usize];
-        for pt in 0..patches.len() {
-            let ei = patches.edge[pt] as usize;
-            let e = &edges[ei];
-            let d = e.front_distance(p);
-            if d <= 0.0 || e.component != comp {
-                continue;
-            }
-            let (s0, s1) = patches.bounds(edges, pt);
-            let len = s1 - s0;
-            let mut visible = 0usize;
-            let mut sum = 0.0;
-            for s in 0..samples {
-                let y = e.point_at(s0 + (s as f64 + 0.5) / samples as f64 * len);
-                // Nudge the target off the edge so the edge itself does not block.
-                let n = e.normal.vec();
-                let yq = [y[0] + n[0] as f64 * 1e-9, y[1] + n[1] as f64 * 1e-9];
-                let blocked = edges.iter().enumerate().any(|(j, o)| j != ei && segment_hits(p, yq, o));
-                if blocked {
+    out.par_chunks_mut(k)
+        .zip(pixels.par_iter())
+        .for_each(|(acc, px)| {
+            let p = [px[0] as f64 + 0.5, px[1] as f64 + 0.5];
+            let comp = geometry.components[px[1] as usize * geometry.width + px[0] as usize];
+            for pt in 0..patches.len() {
+                let ei = patches.edge[pt] as usize;
+                let e = &edges[ei];
+                let d = e.front_distance(p);
+                if d <= 0.0 || e.component != comp {
                     continue;
                 }
-                visible += 1;
-                let r = (p[0] - y[0]).hypot(p[1] - y[1]);
-                let w = falloff.map_or(1.0, |f| f.weight(r));
-                sum += (d / r) / r * w * (len / samples as f64);
-            }
-            for c in 0..k {
-                let b = rad.patch(patches, pt, c);
-                acc[c] += match kernel {
-                    Kernel::Flatland => b * sum / TAU,
-                    Kernel::Paper => {
-                        let centre = e.point_at(0.5 * (s0 + s1));
-                        let r = (p[0] - centre[0]).hypot(p[1] - centre[1]);
-                        let w = falloff.map_or(1.0, |f| f.weight(r));
-                        b * (d / r) * w * visible as f64 / samples as f64
+                let (s0, s1) = patches.bounds(edges, pt);
+                let len = s1 - s0;
+                let mut visible = 0usize;
+                let mut sum = 0.0;
+                for s in 0..samples {
+                    let y = e.point_at(s0 + (s as f64 + 0.5) / samples as f64 * len);
+                    // Nudge the target off the edge so the edge itself does not block.
+                    let n = e.normal.vec();
+                    let yq = [y[0] + n[0] as f64 * 1e-9, y[1] + n[1] as f64 * 1e-9];
+                    let blocked = edges
+                        .iter()
+                        .enumerate()
+                        .any(|(j, o)| j != ei && segment_hits(p, yq, o));
+                    if blocked {
+                        continue;
                     }
-                };
+                    visible += 1;
+                    let r = (p[0] - y[0]).hypot(p[1] - y[1]);
+                    let w = falloff.map_or(1.0, |f| f.weight(r));
+                    sum += (d / r) / r * w * (len / samples as f64);
+                }
+                for c in 0..k {
+                    let b = rad.patch(patches, pt, c);
+                    acc[c] += match kernel {
+                        Kernel::Flatland => b * sum / TAU,
+                        Kernel::Paper => {
+                            let centre = e.point_at(0.5 * (s0 + s1));
+                            let r = (p[0] - centre[0]).hypot(p[1] - centre[1]);
+                            let w = falloff.map_or(1.0, |f| f.weight(r));
+                            b * (d / r) * w * visible as f64 / samples as f64
+                        }
+                    };
+                }
             }
-        }
-    });
+        });
     out
 }

@@ -90,24 +90,40 @@ impl Edge {
 
     /// The constant coordinate of the edge's line (`x` for vertical edges).
     pub fn line(&self) -> f64 {
-        if self.normal.is_vertical_edge() { self.a[0] as f64 } else { self.a[1] as f64 }
+        if self.normal.is_vertical_edge() {
+            self.a[0] as f64
+        } else {
+            self.a[1] as f64
+        }
     }
 
     /// Extent along the edge's axis, `lo < hi` (`y` range for vertical edges).
     pub fn extent(&self) -> (f64, f64) {
-        let (p, q) = if self.normal.is_vertical_edge() { (self.a[1], self.b[1]) } else { (self.a[0], self.b[0]) };
+        let (p, q) = if self.normal.is_vertical_edge() {
+            (self.a[1], self.b[1])
+        } else {
+            (self.a[0], self.b[0])
+        };
         (p.min(q) as f64, p.max(q) as f64)
     }
 
     /// Signed distance of point `p` in front of the edge's line (`> 0` in front).
     pub fn front_distance(&self, p: [f64; 2]) -> f64 {
         let n = self.normal;
-        if n.is_vertical_edge() { (p[0] - self.line()) * n.sign() } else { (p[1] - self.line()) * n.sign() }
+        if n.is_vertical_edge() {
+            (p[0] - self.line()) * n.sign()
+        } else {
+            (p[1] - self.line()) * n.sign()
+        }
     }
 
     /// The point of the edge at axis coordinate `s`.
     pub fn point_at(&self, s: f64) -> [f64; 2] {
-        if self.normal.is_vertical_edge() { [self.line(), s] } else { [s, self.line()] }
+        if self.normal.is_vertical_edge() {
+            [self.line(), s]
+        } else {
+            [s, self.line()]
+        }
     }
 
     /// The solid pixel behind the unit segment of the edge that starts at axis
@@ -212,13 +228,17 @@ impl Unit {
 /// Traces the solid pixels of `level` into loops and transport edges.
 pub fn trace(level: &Level) -> Geometry {
     let (w, h) = (level.width as i32, level.height as i32);
-    let solid = |x: i32, y: i32| x >= 0 && y >= 0 && x < w && y < h && level.cell(x as usize, y as usize).is_solid();
+    let solid = |x: i32, y: i32| {
+        x >= 0 && y >= 0 && x < w && y < h && level.cell(x as usize, y as usize).is_solid()
+    };
 
     // 1. Every exposed side of a solid pixel, as a directed unit edge.
     let mut units: Vec<Unit> = Vec::new();
     for y in 0..h {
         for x in 0..w {
-            let Cell::Solid(m) = level.cell(x as usize, y as usize) else { continue };
+            let Cell::Solid(m) = level.cell(x as usize, y as usize) else {
+                continue;
+            };
             for n in Normal::ALL {
                 let v = n.vec();
                 if solid(x + v[0], y + v[1]) {
@@ -231,7 +251,12 @@ pub fn trace(level: &Level) -> Geometry {
                     Normal::Down => [x, y + 1],
                     Normal::Right => [x + 1, y + 1],
                 };
-                units.push(Unit { from, normal: n, pixel: [x, y], material: m });
+                units.push(Unit {
+                    from,
+                    normal: n,
+                    pixel: [x, y],
+                    material: m,
+                });
             }
         }
     }
@@ -290,7 +315,10 @@ pub fn trace(level: &Level) -> Geometry {
         let s = (0..chain.len()).find(|&k| brk(k)).unwrap_or(0);
         chain.rotate_left(s);
         let loop_id = loops.len() as u32;
-        let mut lp = Loop { vertices: Vec::new(), edges: Vec::new() };
+        let mut lp = Loop {
+            vertices: Vec::new(),
+            edges: Vec::new(),
+        };
         let mut k = 0;
         while k < chain.len() {
             let first = units[chain[k]];
@@ -323,7 +351,13 @@ pub fn trace(level: &Level) -> Geometry {
                 Some(edges.len() as u32 - 1)
             };
             lp.vertices.push(a);
-            lp.edges.push(LoopEdge { a, b, normal: first.normal, material: first.material, transport });
+            lp.edges.push(LoopEdge {
+                a,
+                b,
+                normal: first.normal,
+                material: first.material,
+                transport,
+            });
             k = j;
         }
         loops.push(lp);
@@ -353,7 +387,11 @@ pub fn trace(level: &Level) -> Geometry {
             let mut members = vec![first];
             let mut j = k + 1;
             while j < n && joins((s + j) % n) {
-                members.push(lp.edges[(s + j) % n].transport.expect("joined edges are transport edges"));
+                members.push(
+                    lp.edges[(s + j) % n]
+                        .transport
+                        .expect("joined edges are transport edges"),
+                );
                 j += 1;
             }
             let id = runs.len() as u32;
@@ -365,7 +403,12 @@ pub fn trace(level: &Level) -> Geometry {
                 edges[m as usize].run = id;
             }
             let e0 = &edges[first as usize];
-            runs.push(Run { normal: e0.normal, line: e0.line() as i32, lo, hi });
+            runs.push(Run {
+                normal: e0.normal,
+                line: e0.line() as i32,
+                lo,
+                hi,
+            });
             k = j;
         }
     }
@@ -378,7 +421,15 @@ pub fn trace(level: &Level) -> Geometry {
         e.component = components[fp[1] as usize * level.width + fp[0] as usize];
     }
 
-    Geometry { width: level.width, height: level.height, edges, loops, runs, components, component_count }
+    Geometry {
+        width: level.width,
+        height: level.height,
+        edges,
+        loops,
+        runs,
+        components,
+        component_count,
+    }
 }
 
 /// 4-connected components of the free (non-solid) pixels.

@@ -27,7 +27,10 @@ pub struct Falloff {
 impl Falloff {
     /// `distance` is the half-energy distance in pixels.
     pub fn new(distance: f64) -> Falloff {
-        Falloff { a: distance * distance, sqrt_a: distance }
+        Falloff {
+            a: distance * distance,
+            sqrt_a: distance,
+        }
     }
 
     /// The weight `A / (A + r^2)` at distance `r`.
@@ -61,18 +64,28 @@ pub struct Reach {
 impl Reach {
     /// No culling at all.
     pub fn unlimited(edges: usize) -> Reach {
-        Reach { radius: vec![f64::INFINITY; edges], max: f64::INFINITY }
+        Reach {
+            radius: vec![f64::INFINITY; edges],
+            max: f64::INFINITY,
+        }
     }
 
     /// Radii for edges of lengths `len` with largest radiosity `bmax`, for the
     /// bound `scale * B * w(r) * min(pi, L / r) <= threshold` (`scale` is
     /// `1 / (2 pi)` for the gather, `1 / 2` for form factors). No falloff or a
     /// zero threshold means unlimited.
-    pub fn new(len: &[f64], bmax: &[f64], falloff: Option<Falloff>, scale: f64, threshold: f64) -> Reach {
+    pub fn new(
+        len: &[f64],
+        bmax: &[f64],
+        falloff: Option<Falloff>,
+        scale: f64,
+        threshold: f64,
+    ) -> Reach {
         let Some(f) = falloff.filter(|_| threshold > 0.0) else {
             return Reach::unlimited(len.len());
         };
-        let bound = |b: f64, l: f64, r: f64| scale * b * f.weight(r) * std::f64::consts::PI.min(l / r);
+        let bound =
+            |b: f64, l: f64, r: f64| scale * b * f.weight(r) * std::f64::consts::PI.min(l / r);
         let radius: Vec<f64> = len
             .iter()
             .zip(bmax)
@@ -91,7 +104,11 @@ impl Reach {
                 let mut lo = 0.0;
                 for _ in 0..60 {
                     let mid = 0.5 * (lo + hi);
-                    if bound(b, l, mid) > threshold { lo = mid } else { hi = mid }
+                    if bound(b, l, mid) > threshold {
+                        lo = mid
+                    } else {
+                        hi = mid
+                    }
                 }
                 hi
             })
@@ -190,7 +207,10 @@ impl FactorLine {
         let (s, u) = (t / r, self.d / r);
         let (ps, qu) = match self.fall {
             None => (s, u),
-            Some((_, sa, c, k1, k2)) => (s - k1 * (sa * s / c).atanh(), u - k2 * (sa * u / self.d).atan()),
+            Some((_, sa, c, k1, k2)) => (
+                s - k1 * (sa * s / c).atanh(),
+                u - k2 * (sa * u / self.d).atan(),
+            ),
         };
         0.5 * (self.alpha * ps - self.beta * qu)
     }
@@ -205,10 +225,23 @@ pub fn gauss_legendre(n: usize) -> (&'static [f64], &'static [f64]) {
     const X2: [f64; 2] = [0.211_324_865_405_187_1, 0.788_675_134_594_812_9];
     const W2: [f64; 2] = [0.5, 0.5];
     const X3: [f64; 3] = [0.112_701_665_379_258_3, 0.5, 0.887_298_334_620_741_7];
-    const W3: [f64; 3] = [0.277_777_777_777_777_8, 0.444_444_444_444_444_4, 0.277_777_777_777_777_8];
-    const X4: [f64; 4] =
-        [0.069_431_844_202_973_71, 0.330_009_478_207_571_9, 0.669_990_521_792_428_1, 0.930_568_155_797_026_3];
-    const W4: [f64; 4] = [0.173_927_422_568_727, 0.326_072_577_431_273, 0.326_072_577_431_273, 0.173_927_422_568_727];
+    const W3: [f64; 3] = [
+        0.277_777_777_777_777_8,
+        0.444_444_444_444_444_4,
+        0.277_777_777_777_777_8,
+    ];
+    const X4: [f64; 4] = [
+        0.069_431_844_202_973_71,
+        0.330_009_478_207_571_9,
+        0.669_990_521_792_428_1,
+        0.930_568_155_797_026_3,
+    ];
+    const W4: [f64; 4] = [
+        0.173_927_422_568_727,
+        0.326_072_577_431_273,
+        0.326_072_577_431_273,
+        0.173_927_422_568_727,
+    ];
     const X6: [f64; 6] = [
         0.033_765_242_898_423_99,
         0.169_395_306_766_867_7,
@@ -264,23 +297,41 @@ mod tests {
         let (p0, p1) = ((t0 / d).atan(), (t1 / d).atan());
         let n = 200_000;
         let h = (p1 - p0) / n as f64;
-        (0..n).map(|i| p0 + (i as f64 + 0.5) * h).map(|psi| f(psi, d / psi.cos()) * h).sum()
+        (0..n)
+            .map(|i| p0 + (i as f64 + 0.5) * h)
+            .map(|psi| f(psi, d / psi.cos()) * h)
+            .sum()
     }
 
     #[test]
     fn reach_radius_is_where_the_bound_meets_the_threshold() {
         let f = Falloff::new(20.0);
-        let reach = Reach::new(&[4.0, 40.0, 4.0], &[10.0, 10.0, 0.0], Some(f), 0.5 / std::f64::consts::PI, 1e-3);
+        let reach = Reach::new(
+            &[4.0, 40.0, 4.0],
+            &[10.0, 10.0, 0.0],
+            Some(f),
+            0.5 / std::f64::consts::PI,
+            1e-3,
+        );
         for (i, (l, b)) in [(4.0, 10.0), (40.0, 10.0)].into_iter().enumerate() {
             let r = reach.radius[i];
-            let bound = |r: f64| 10.0 * f.weight(r) * std::f64::consts::PI.min(l / r) / std::f64::consts::TAU;
+            let bound = |r: f64| {
+                10.0 * f.weight(r) * std::f64::consts::PI.min(l / r) / std::f64::consts::TAU
+            };
             assert!((bound(r) - 1e-3).abs() < 1e-9, "{r}");
             assert!(b > 0.0);
         }
-        assert!(reach.radius[1] > reach.radius[0], "longer edges reach farther");
+        assert!(
+            reach.radius[1] > reach.radius[0],
+            "longer edges reach farther"
+        );
         assert_eq!(reach.radius[2], 0.0, "dark edges reach nowhere");
         assert_eq!(reach.max, reach.radius[1]);
-        assert!(Reach::new(&[4.0], &[1.0], None, 1.0, 1e-3).max.is_infinite());
+        assert!(
+            Reach::new(&[4.0], &[1.0], None, 1.0, 1e-3)
+                .max
+                .is_infinite()
+        );
     }
 
     #[test]
@@ -298,7 +349,12 @@ mod tests {
 
     #[test]
     fn gather_closed_forms_match_quadrature() {
-        for fall in [None, Some(Falloff::new(0.7)), Some(Falloff::new(5.0)), Some(Falloff::new(300.0))] {
+        for fall in [
+            None,
+            Some(Falloff::new(0.7)),
+            Some(Falloff::new(5.0)),
+            Some(Falloff::new(300.0)),
+        ] {
             let (d, t0, t1) = (2.3, -4.0, 7.5);
             let line = GatherLine::new(d, fall);
             let want = numeric(d, t0, t1, |_, r| fall.map_or(1.0, |f| f.weight(r)));
@@ -309,24 +365,42 @@ mod tests {
 
     #[test]
     fn linear_gather_closed_form_matches_quadrature() {
-        for fall in [None, Some(Falloff::new(0.7)), Some(Falloff::new(5.0)), Some(Falloff::new(300.0))] {
+        for fall in [
+            None,
+            Some(Falloff::new(0.7)),
+            Some(Falloff::new(5.0)),
+            Some(Falloff::new(300.0)),
+        ] {
             let (d, t0, t1) = (2.3, -4.0, 7.5);
             let line = GatherLine::new(d, fall);
-            let want = numeric(d, t0, t1, |psi, r| d * psi.tan() * fall.map_or(1.0, |f| f.weight(r)));
-            assert!((line.at_linear(t1) - line.at_linear(t0) - want).abs() < 1e-7, "{fall:?}");
+            let want = numeric(d, t0, t1, |psi, r| {
+                d * psi.tan() * fall.map_or(1.0, |f| f.weight(r))
+            });
+            assert!(
+                (line.at_linear(t1) - line.at_linear(t0) - want).abs() < 1e-7,
+                "{fall:?}"
+            );
         }
     }
 
     #[test]
     fn factor_closed_forms_match_quadrature() {
-        for fall in [None, Some(Falloff::new(0.7)), Some(Falloff::new(5.0)), Some(Falloff::new(300.0))] {
+        for fall in [
+            None,
+            Some(Falloff::new(0.7)),
+            Some(Falloff::new(5.0)),
+            Some(Falloff::new(300.0)),
+        ] {
             for (alpha, beta) in [(1.0, 0.0), (0.0, 1.0), (0.0, -1.0), (0.6, 0.8)] {
                 let (d, t0, t1) = (1.7, -3.0, 9.0);
                 let line = FactorLine::new(d, alpha, beta, fall);
                 let want = numeric(d, t0, t1, |psi, r| {
                     0.5 * (alpha * psi.cos() + beta * psi.sin()) * fall.map_or(1.0, |f| f.weight(r))
                 });
-                assert!((line.at(t1) - line.at(t0) - want).abs() < 1e-8, "{fall:?} {alpha} {beta}");
+                assert!(
+                    (line.at(t1) - line.at(t0) - want).abs() < 1e-8,
+                    "{fall:?} {alpha} {beta}"
+                );
             }
         }
     }

@@ -11,6 +11,8 @@
 //! what a scene does not need.
 
 pub mod bake;
+pub mod batch;
+pub mod cli;
 pub mod gather;
 pub mod geometry;
 pub mod kernel;
@@ -23,6 +25,7 @@ pub mod paper;
 pub mod quality;
 pub mod report;
 pub mod solve;
+pub mod sweep;
 pub mod synth;
 pub mod transport;
 pub mod visibility;

@@ -51,7 +51,9 @@ impl Material {
 
     /// The light group this material belongs to (its colour when unnamed).
     pub fn group_name(&self) -> String {
-        self.group.clone().unwrap_or_else(|| self.hex().trim_start_matches('#').to_string())
+        self.group
+            .clone()
+            .unwrap_or_else(|| self.hex().trim_start_matches('#').to_string())
     }
 }
 
@@ -72,7 +74,11 @@ pub fn srgb_to_linear(c: u8) -> f64 {
 
 /// Linear value to sRGB-encoded value in `0..=1` (input clamped to `0..=1`).
 pub fn linear_to_srgb(v: f64) -> f64 {
-    let v = if v.is_finite() { v.clamp(0.0, 1.0) } else { 0.0 };
+    let v = if v.is_finite() {
+        v.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     if v <= 0.003_130_8 {
         v * 12.92
     } else {

@@ -24,7 +24,11 @@ pub const SAMPLES: usize = 4;
 pub const MAX_ROW: f64 = 0.999;
 
 /// The paper's F as sparse rows `(j, F_ij)`, symmetric, `F_ii = 1` included.
-pub fn form_factors(g: &Geometry, patches: &Patches, falloff: Option<Falloff>) -> Vec<Vec<(u32, f64)>> {
+pub fn form_factors(
+    g: &Geometry,
+    patches: &Patches,
+    falloff: Option<Falloff>,
+) -> Vec<Vec<(u32, f64)>> {
     let edges = &g.edges;
     let n = patches.len();
     let centre = |p: usize| {
@@ -33,7 +37,11 @@ pub fn form_factors(g: &Geometry, patches: &Patches, falloff: Option<Falloff>) -
     };
     let sample = |p: usize, k: usize| {
         let (s0, s1) = patches.bounds(edges, p);
-        (s0 + (k as f64 + 0.5) / SAMPLES as f64 * (s1 - s0), edges[patches.edge[p] as usize].point_at(s0 + (k as f64 + 0.5) / SAMPLES as f64 * (s1 - s0)))
+        (
+            s0 + (k as f64 + 0.5) / SAMPLES as f64 * (s1 - s0),
+            edges[patches.edge[p] as usize]
+                .point_at(s0 + (k as f64 + 0.5) / SAMPLES as f64 * (s1 - s0)),
+        )
     };
     let mut pos = Vec::with_capacity(n * SAMPLES);
     let mut pixel = Vec::with_capacity(n * SAMPLES);
@@ -47,33 +55,46 @@ pub fn form_factors(g: &Geometry, patches: &Patches, falloff: Option<Falloff>) -
     }
     // visible[i * SAMPLES + k] lists the patches j > i whose k-th sample the
     // k-th sample of i sees.
-    let visible: Vec<std::sync::Mutex<Vec<u32>>> = (0..n * SAMPLES).map(|_| Default::default()).collect();
+    let visible: Vec<std::sync::Mutex<Vec<u32>>> =
+        (0..n * SAMPLES).map(|_| Default::default()).collect();
     let view = |i: usize| View::Half(edges[patches.edge[i / SAMPLES] as usize].normal);
     let unlimited = crate::kernel::Reach::unlimited(edges.len());
-    for_each_visibility(g, &pos, &pixel, &view, &unlimited, None, &|q, spans: &[crate::visibility::Span]| {
-        let (i, k) = (q / SAMPLES, q % SAMPLES);
-        let x = pos[q];
-        let mut out = Vec::new();
-        for j in i + 1..n {
-            let (s, y) = sample(j, k);
-            let key = diamond_from(x, y, edges[patches.edge[i] as usize].normal);
-            let at = spans.partition_point(|sp| sp.k1 <= key);
-            if let Some(sp) = spans.get(at)
-                && sp.k0 <= key
-                && sp.edge == patches.edge[j]
-                && sp.s0 <= s
-                && s <= sp.s1
-            {
-                out.push(j as u32);
+    for_each_visibility(
+        g,
+        &pos,
+        &pixel,
+        &view,
+        &unlimited,
+        None,
+        &|q, spans: &[crate::visibility::Span]| {
+            let (i, k) = (q / SAMPLES, q % SAMPLES);
+            let x = pos[q];
+            let mut out = Vec::new();
+            for j in i + 1..n {
+                let (s, y) = sample(j, k);
+                let key = diamond_from(x, y, edges[patches.edge[i] as usize].normal);
+                let at = spans.partition_point(|sp| sp.k1 <= key);
+                if let Some(sp) = spans.get(at)
+                    && sp.k0 <= key
+                    && sp.edge == patches.edge[j]
+                    && sp.s0 <= s
+                    && s <= sp.s1
+                {
+                    out.push(j as u32);
+                }
             }
-        }
-        *visible[q].lock().expect("no panics while holding the lock") = out;
-    });
+            *visible[q].lock().expect("no panics while holding the lock") = out;
+        },
+    );
     let mut rows: Vec<Vec<(u32, f64)>> = (0..n).map(|i| vec![(i as u32, 1.0)]).collect();
     for i in 0..n {
         let mut count: Vec<(u32, u32)> = Vec::new();
         for k in 0..SAMPLES {
-            for &j in visible[i * SAMPLES + k].lock().expect("no panics while holding the lock").iter() {
+            for &j in visible[i * SAMPLES + k]
+                .lock()
+                .expect("no panics while holding the lock")
+                .iter()
+            {
                 match count.iter_mut().find(|c| c.0 == j) {
                     Some(c) => c.1 += 1,
                     None => count.push((j, 1)),
@@ -88,7 +109,8 @@ pub fn form_factors(g: &Geometry, patches: &Patches, falloff: Option<Falloff>) -
             let nj = edges[patches.edge[j as usize] as usize].normal.vec();
             let d = [cj[0] - ci[0], cj[1] - ci[1]];
             let r = d[0].hypot(d[1]);
-            let w = ((ni[0] as f64 * d[0] + ni[1] as f64 * d[1]) / r) * ((-(nj[0] as f64) * d[0] - nj[1] as f64 * d[1]) / r);
+            let w = ((ni[0] as f64 * d[0] + ni[1] as f64 * d[1]) / r)
+                * ((-(nj[0] as f64) * d[0] - nj[1] as f64 * d[1]) / r);
             if w <= 0.0 {
                 continue;
             }
@@ -110,12 +132,20 @@ fn diamond_from(x: [f64; 2], y: [f64; 2], n: crate::geometry::Normal) -> f64 {
     let t = n.travel();
     let v = n.vec();
     let d = [y[0] - x[0], y[1] - x[1]];
-    diamond(d[0] * t[0] as f64 + d[1] * t[1] as f64, d[0] * v[0] as f64 + d[1] * v[1] as f64)
+    diamond(
+        d[0] * t[0] as f64 + d[1] * t[1] as f64,
+        d[0] * v[0] as f64 + d[1] * v[1] as f64,
+    )
 }
 
 /// Solves `(I - rho F) B = E` with the guard described above; returns the
 /// radiosity and how many rows were rescaled.
-pub fn solve(rows: &[Vec<(u32, f64)>], rho: &[f64], e: &[f64], tolerance: f64) -> (Vec<f64>, usize) {
+pub fn solve(
+    rows: &[Vec<(u32, f64)>],
+    rho: &[f64],
+    e: &[f64],
+    tolerance: f64,
+) -> (Vec<f64>, usize) {
     let n = rows.len();
     let mut rescaled = 0;
     // Row scale so that sum_j rho_i F_ij stays below 1.
@@ -145,8 +175,14 @@ pub fn solve(rows: &[Vec<(u32, f64)>], rho: &[f64], e: &[f64], tolerance: f64) -
     // Jacobi iteration: converges because |rho F|_inf < 1.
     let mut b = e.to_vec();
     for _ in 0..100_000 {
-        let next: Vec<f64> = (0..n).map(|i| e[i] + scale[i] * rows[i].iter().map(|&(j, f)| f * b[j as usize]).sum::<f64>()).collect();
-        let diff = next.iter().zip(&b).map(|(a, c)| (a - c).abs()).fold(0.0, f64::max);
+        let next: Vec<f64> = (0..n)
+            .map(|i| e[i] + scale[i] * rows[i].iter().map(|&(j, f)| f * b[j as usize]).sum::<f64>())
+            .collect();
+        let diff = next
+            .iter()
+            .zip(&b)
+            .map(|(a, c)| (a - c).abs())
+            .fold(0.0, f64::max);
         let size = next.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         b = next;
         if diff <= tolerance * size.max(1e-300) {

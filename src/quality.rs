@@ -35,14 +35,39 @@ pub struct Knobs {
 }
 
 impl Quality {
-    pub const ALL: [Quality; 4] = [Quality::Draft, Quality::Normal, Quality::High, Quality::Reference];
+    pub const ALL: [Quality; 4] = [
+        Quality::Draft,
+        Quality::Normal,
+        Quality::High,
+        Quality::Reference,
+    ];
 
     pub fn knobs(self) -> Knobs {
         match self {
-            Quality::Draft => Knobs { patch_len: 8.0, quad: 2, tolerance: 1e-4, reach_bound: 1e-3 },
-            Quality::Normal => Knobs { patch_len: 4.0, quad: 3, tolerance: 1e-6, reach_bound: 1e-4 },
-            Quality::High => Knobs { patch_len: 2.0, quad: 4, tolerance: 1e-8, reach_bound: 1e-5 },
-            Quality::Reference => Knobs { patch_len: 0.5, quad: 8, tolerance: 1e-10, reach_bound: 0.0 },
+            Quality::Draft => Knobs {
+                patch_len: 8.0,
+                quad: 2,
+                tolerance: 1e-4,
+                reach_bound: 1e-3,
+            },
+            Quality::Normal => Knobs {
+                patch_len: 4.0,
+                quad: 3,
+                tolerance: 1e-6,
+                reach_bound: 1e-4,
+            },
+            Quality::High => Knobs {
+                patch_len: 2.0,
+                quad: 4,
+                tolerance: 1e-8,
+                reach_bound: 1e-5,
+            },
+            Quality::Reference => Knobs {
+                patch_len: 0.5,
+                quad: 8,
+                tolerance: 1e-10,
+                reach_bound: 0.0,
+            },
         }
     }
 

@@ -81,7 +81,11 @@ pub struct Report {
 impl Report {
     /// One-line human summary of what was simulated and what was skipped.
     pub fn summary(&self) -> String {
-        let mut parts = vec![format!("{} solve{}", self.solves, if self.solves == 1 { "" } else { "s" })];
+        let mut parts = vec![format!(
+            "{} solve{}",
+            self.solves,
+            if self.solves == 1 { "" } else { "s" }
+        )];
         for s in &self.skipped {
             parts.push(format!("{}: {}", s.effect, s.reason));
         }

@@ -31,7 +31,11 @@ pub struct SolveSettings {
 
 impl Default for SolveSettings {
     fn default() -> Self {
-        SolveSettings { tolerance: 1e-8, direct_max: 1500, fallback_max: 6000 }
+        SolveSettings {
+            tolerance: 1e-8,
+            direct_max: 1500,
+            fallback_max: 6000,
+        }
     }
 }
 
@@ -48,9 +52,13 @@ pub struct ChannelSolution {
 /// Why a channel has no answer.
 #[derive(Debug, thiserror::Error)]
 pub enum SolveError {
-    #[error("a closed region reflects all light (reflectance 1) and emits: its radiosity is unbounded; patches {patches:?}")]
+    #[error(
+        "a closed region reflects all light (reflectance 1) and emits: its radiosity is unbounded; patches {patches:?}"
+    )]
     Unbounded { patches: Vec<usize> },
-    #[error("the solver did not converge: relative residual {residual:.3e} after {iterations} iterations")]
+    #[error(
+        "the solver did not converge: relative residual {residual:.3e} after {iterations} iterations"
+    )]
     NotConverged { residual: f64, iterations: usize },
 }
 
@@ -131,7 +139,14 @@ impl System {
             rhs.push(b);
             row_ptr.push(col.len());
         }
-        System { unknown, row_ptr, col, val, diag, rhs }
+        System {
+            unknown,
+            row_ptr,
+            col,
+            val,
+            diag,
+            rhs,
+        }
     }
 
     fn len(&self) -> usize {
@@ -139,13 +154,16 @@ impl System {
     }
 
     fn apply(&self, x: &[f64], y: &mut [f64]) {
-        y.par_iter_mut().enumerate().with_min_len(256).for_each(|(i, yi)| {
-            let mut s = self.diag[i] * x[i];
-            for k in self.row_ptr[i]..self.row_ptr[i + 1] {
-                s += self.val[k] * x[self.col[k] as usize];
-            }
-            *yi = s;
-        });
+        y.par_iter_mut()
+            .enumerate()
+            .with_min_len(256)
+            .for_each(|(i, yi)| {
+                let mut s = self.diag[i] * x[i];
+                for k in self.row_ptr[i]..self.row_ptr[i + 1] {
+                    s += self.val[k] * x[self.col[k] as usize];
+                }
+                *yi = s;
+            });
     }
 
     fn dense(&self) -> DMatrix<f64> {
@@ -177,10 +195,15 @@ impl System {
             while let Some(i) = stack.pop() {
                 members.push(i);
                 let g = self.unknown[i];
-                let row_sum: f64 = -self.val[self.row_ptr[i]..self.row_ptr[i + 1]].iter().sum::<f64>();
+                let row_sum: f64 = -self.val[self.row_ptr[i]..self.row_ptr[i + 1]]
+                    .iter()
+                    .sum::<f64>();
                 // Closed: perfect mirror, sees only walls, and all of them unknowns.
                 let s_total: f64 = ff.val[ff.row_ptr[g]..ff.row_ptr[g + 1]].iter().sum();
-                if rho[g] < 1.0 || ff.coverage[g] < 1.0 - 1e-9 || (s_total - row_sum) > 1e-12 * s_total.max(1e-300) {
+                if rho[g] < 1.0
+                    || ff.coverage[g] < 1.0 - 1e-9
+                    || (s_total - row_sum) > 1e-12 * s_total.max(1e-300)
+                {
                     closed = false;
                 }
                 for k in self.row_ptr[i]..self.row_ptr[i + 1] {
@@ -212,7 +235,10 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 /// Preconditioned conjugate gradients; returns `(x, relative residual, iterations)`.
 fn pcg(sys: &System, x0: Option<&[f64]>, tol: f64, max_iter: usize) -> (Vec<f64>, f64, usize) {
     let n = sys.len();
-    let mut x = x0.map_or_else(|| sys.rhs.iter().zip(&sys.diag).map(|(b, d)| b / d).collect(), <[f64]>::to_vec);
+    let mut x = x0.map_or_else(
+        || sys.rhs.iter().zip(&sys.diag).map(|(b, d)| b / d).collect(),
+        <[f64]>::to_vec,
+    );
     let mut ax = vec![0.0; n];
     sys.apply(&x, &mut ax);
     let mut r: Vec<f64> = sys.rhs.iter().zip(&ax).map(|(b, a)| b - a).collect();
@@ -235,34 +261,58 @@ fn pcg(sys: &System, x0: Option<&[f64]>, tol: f64, max_iter: usize) -> (Vec<f64>
         let alpha = rz / pap;
         x.par_iter_mut().zip(&p).for_each(|(x, p)| *x += alpha * p);
         r.par_iter_mut().zip(&ap).for_each(|(r, a)| *r -= alpha * a);
-        z.par_iter_mut().zip(&r).zip(&sys.diag).for_each(|((z, r), d)| *z = r / d);
+        z.par_iter_mut()
+            .zip(&r)
+            .zip(&sys.diag)
+            .for_each(|((z, r), d)| *z = r / d);
         let rz_new = dot(&r, &z);
         let beta = rz_new / rz;
         rz = rz_new;
-        p.par_iter_mut().zip(&z).for_each(|(p, z)| *p = z + beta * *p);
+        p.par_iter_mut()
+            .zip(&z)
+            .for_each(|(p, z)| *p = z + beta * *p);
         rel = dot(&r, &r).sqrt() / bnorm;
         it += 1;
     }
     // Recompute the true residual (the recurrence drifts on hard systems).
     sys.apply(&x, &mut ax);
-    let true_rel = sys.rhs.iter().zip(&ax).map(|(b, a)| (b - a) * (b - a)).sum::<f64>().sqrt() / bnorm;
+    let true_rel = sys
+        .rhs
+        .iter()
+        .zip(&ax)
+        .map(|(b, a)| (b - a) * (b - a))
+        .sum::<f64>()
+        .sqrt()
+        / bnorm;
     (x, true_rel, it)
 }
 
 /// Solves one channel: reflectance `rho`, emission `e`, both per patch.
-pub fn solve_channel(ff: &FormFactors, rho: &[f64], e: &[f64], set: &SolveSettings) -> Result<ChannelSolution, SolveError> {
+pub fn solve_channel(
+    ff: &FormFactors,
+    rho: &[f64],
+    e: &[f64],
+    set: &SolveSettings,
+) -> Result<ChannelSolution, SolveError> {
     let n = ff.n();
     let sys = System::new(ff, rho, e);
     let mut b = e.to_vec();
     if sys.len() == 0 {
-        return Ok(ChannelSolution { radiosity: b, residual: 0.0, method: "none", iterations: 0 });
+        return Ok(ChannelSolution {
+            radiosity: b,
+            residual: 0.0,
+            method: "none",
+            iterations: 0,
+        });
     }
     // Singular closed groups: unbounded if lit, zero otherwise.
     let closed = sys.closed_groups(ff, rho);
     let mut pinned = vec![false; sys.len()];
     for g in &closed {
         if g.iter().any(|&i| sys.rhs[i] != 0.0) {
-            return Err(SolveError::Unbounded { patches: g.iter().map(|&i| sys.unknown[i]).collect() });
+            return Err(SolveError::Unbounded {
+                patches: g.iter().map(|&i| sys.unknown[i]).collect(),
+            });
         }
         for &i in g {
             pinned[i] = true;
@@ -278,7 +328,10 @@ pub fn solve_channel(ff: &FormFactors, rho: &[f64], e: &[f64], set: &SolveSettin
             }
         }
         let sub = solve_channel(ff, &rho2, e, set)?;
-        return Ok(ChannelSolution { radiosity: sub.radiosity, ..sub });
+        return Ok(ChannelSolution {
+            radiosity: sub.radiosity,
+            ..sub
+        });
     } else if sys.len() <= set.direct_max {
         (direct(&sys), "cholesky", 0)
     } else {
@@ -291,7 +344,10 @@ pub fn solve_channel(ff: &FormFactors, rho: &[f64], e: &[f64], set: &SolveSettin
         } else {
             let (x2, rel2, it2) = pcg(&sys, Some(&x), set.tolerance, 20 * max_iter);
             if rel2 > set.tolerance.max(1e-6) {
-                return Err(SolveError::NotConverged { residual: rel2, iterations: it + it2 });
+                return Err(SolveError::NotConverged {
+                    residual: rel2,
+                    iterations: it + it2,
+                });
             }
             (x2, "cg", it + it2)
         }
@@ -300,7 +356,12 @@ pub fn solve_channel(ff: &FormFactors, rho: &[f64], e: &[f64], set: &SolveSettin
         b[i] = x[k].max(0.0);
     }
     let res = residual(ff, rho, e, &b);
-    Ok(ChannelSolution { radiosity: b, residual: res, method, iterations })
+    Ok(ChannelSolution {
+        radiosity: b,
+        residual: res,
+        method,
+        iterations,
+    })
 }
 
 fn direct(sys: &System) -> Vec<f64> {
@@ -308,6 +369,10 @@ fn direct(sys: &System) -> Vec<f64> {
     let rhs = DVector::from_column_slice(&sys.rhs);
     match m.clone().cholesky() {
         Some(ch) => ch.solve(&rhs).as_slice().to_vec(),
-        None => m.lu().solve(&rhs).map(|v| v.as_slice().to_vec()).unwrap_or_else(|| vec![0.0; sys.len()]),
+        None => m
+            .lu()
+            .solve(&rhs)
+            .map(|v| v.as_slice().to_vec())
+            .unwrap_or_else(|| vec![0.0; sys.len()]),
     }
 }

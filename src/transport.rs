@@ -25,8 +25,8 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::geometry::{Edge, Geometry, Normal};
-use crate::kernel::{FactorLine, Falloff, gauss_legendre};
 use crate::kernel::Reach;
+use crate::kernel::{FactorLine, Falloff, gauss_legendre};
 use crate::visibility::{Blocks, Rect, Span, Sweeper, TileTree, View};
 
 /// Patches: every edge cut into equal pieces.
@@ -82,7 +82,11 @@ impl Patches {
         let n = self.first[e + 1] as usize - self.first[e] as usize;
         let h = self.step[e];
         let s0 = lo + k as f64 * h;
-        let s1 = if k + 1 == n { hi } else { lo + (k + 1) as f64 * h };
+        let s1 = if k + 1 == n {
+            hi
+        } else {
+            lo + (k + 1) as f64 * h
+        };
         (s0, s1)
     }
 
@@ -99,7 +103,11 @@ impl Patches {
         let mut a = span.s0;
         let mut k = k0;
         loop {
-            let end = if k + 1 == n { span.s1 } else { (lo + (k + 1) as f64 * h).min(span.s1) };
+            let end = if k + 1 == n {
+                span.s1
+            } else {
+                (lo + (k + 1) as f64 * h).min(span.s1)
+            };
             if end > a {
                 f(first + k, a, end);
             }
@@ -114,7 +122,11 @@ impl Patches {
 
 /// Unit vector along an edge's axis (`+y` for vertical edges, `+x` otherwise).
 pub fn axis_vec(n: Normal) -> [f64; 2] {
-    if n.is_vertical_edge() { [0.0, 1.0] } else { [1.0, 0.0] }
+    if n.is_vertical_edge() {
+        [0.0, 1.0]
+    } else {
+        [1.0, 0.0]
+    }
 }
 
 pub fn normal_vec(n: Normal) -> [f64; 2] {
@@ -148,7 +160,11 @@ pub fn point_factors(
         let tj = axis_vec(e.normal);
         let alpha = -(nxv[0] * nj[0] + nxv[1] * nj[1]);
         let beta = nxv[0] * tj[0] + nxv[1] * tj[1];
-        let foot = if e.normal.is_vertical_edge() { x[1] } else { x[0] };
+        let foot = if e.normal.is_vertical_edge() {
+            x[1]
+        } else {
+            x[0]
+        };
         let line = FactorLine::new(d, alpha, beta, falloff);
         let mut prev: Option<(f64, f64)> = None;
         patches.for_each_piece(edges, span, |p, a, b| {
@@ -171,7 +187,11 @@ pub fn point_factors(
 #[inline]
 pub fn edge_distance(e: &Edge, p: [f64; 2]) -> f64 {
     let (lo, hi) = e.extent();
-    let s = if e.normal.is_vertical_edge() { p[1] } else { p[0] };
+    let s = if e.normal.is_vertical_edge() {
+        p[1]
+    } else {
+        p[0]
+    };
     let along = (lo - s).max(s - hi).max(0.0);
     let d = e.front_distance(p);
     (d * d + along * along).sqrt()
@@ -271,10 +291,20 @@ impl FormFactors {
         let dlen = (0..n)
             .map(|i| {
                 let s: f64 = val[row_ptr[i]..row_ptr[i + 1]].iter().sum();
-                if coverage[i] > 0.0 && s > 0.0 { s / coverage[i] } else { len[i] }
+                if coverage[i] > 0.0 && s > 0.0 {
+                    s / coverage[i]
+                } else {
+                    len[i]
+                }
             })
             .collect();
-        FormFactors { row_ptr, col, val, dlen, coverage }
+        FormFactors {
+            row_ptr,
+            col,
+            val,
+            dlen,
+            coverage,
+        }
     }
 }
 
@@ -297,7 +327,11 @@ impl PointRows {
     pub fn slopes(&self, patches: &Patches, rho: &[f64], e: &[f64], b: &[f64]) -> Vec<f64> {
         let (xs, ws) = gauss_legendre(self.q);
         let q = xs.len();
-        let den: f64 = xs.iter().zip(ws).map(|(x, w)| w * (x - 0.5) * (x - 0.5)).sum();
+        let den: f64 = xs
+            .iter()
+            .zip(ws)
+            .map(|(x, w)| w * (x - 0.5) * (x - 0.5))
+            .sum();
         (0..patches.len())
             .into_par_iter()
             .map(|p| {
@@ -307,7 +341,11 @@ impl PointRows {
                 let mut num = 0.0;
                 for k in 0..q {
                     let r = self.row_ptr[p * q + k]..self.row_ptr[p * q + k + 1];
-                    let h: f64 = self.col[r.clone()].iter().zip(&self.val[r]).map(|(&j, &v)| v * b[j as usize]).sum();
+                    let h: f64 = self.col[r.clone()]
+                        .iter()
+                        .zip(&self.val[r])
+                        .map(|(&j, &v)| v * b[j as usize])
+                        .sum();
                     num += ws[k] * (e[p] + rho[p] * h) * (xs[k] - 0.5);
                 }
                 let len = patches.length(p);
@@ -360,7 +398,14 @@ impl PointGrid {
             order[fill[l]] = i as u32;
             fill[l] += 1;
         }
-        PointGrid { width, leaves_x, leaf, sat, start, order }
+        PointGrid {
+            width,
+            leaves_x,
+            leaf,
+            sat,
+            start,
+            order,
+        }
     }
 
     /// Number of points in the rectangle.
@@ -418,7 +463,9 @@ where
             .regions
             .iter()
             .map(|r| match (contributes, &r.candidates) {
-                (Some(c), Some(list)) => !list.iter().any(|&e| c(e, r.bbox.distance_to(&geometry.edges[e as usize]))),
+                (Some(c), Some(list)) => !list
+                    .iter()
+                    .any(|&e| c(e, r.bbox.distance_to(&geometry.edges[e as usize]))),
                 _ => false,
             })
             .collect();
@@ -437,12 +484,23 @@ where
                     skipped += 1;
                 } else {
                     match leaf.candidates_at(px) {
-                        Some(cands) => sweeper.sweep(&geometry.edges, cands, pos[i], view(i), comp, spans),
+                        Some(cands) => {
+                            sweeper.sweep(&geometry.edges, cands, pos[i], view(i), comp, spans)
+                        }
                         None => {
                             if region != Some(seed_region) {
                                 seeds.clear();
                             }
-                            sweeper.walk(&geometry.edges, &blocks, pos[i], view(i), comp, reach.max, seeds, spans);
+                            sweeper.walk(
+                                &geometry.edges,
+                                &blocks,
+                                pos[i],
+                                view(i),
+                                comp,
+                                reach.max,
+                                seeds,
+                                spans,
+                            );
                             seeds.clear();
                             seeds.extend(spans.iter().map(|s| s.edge));
                             seeds.dedup();
@@ -455,7 +513,10 @@ where
             unreached.fetch_add(skipped, std::sync::atomic::Ordering::Relaxed);
         })
     });
-    VisitStats { culled_pairs, unreached: unreached.into_inner() }
+    VisitStats {
+        culled_pairs,
+        unreached: unreached.into_inner(),
+    }
 }
 
 /// Computes the form factors with `quad` Gauss-Legendre points per patch,
@@ -483,12 +544,22 @@ pub fn form_factors(
             pixel.push(e.free_pixel_at(s.floor() as i32));
         }
     }
-    let results: Vec<std::sync::Mutex<Vec<(u32, f64)>>> = (0..n * q).map(|_| Default::default()).collect();
+    let results: Vec<std::sync::Mutex<Vec<(u32, f64)>>> =
+        (0..n * q).map(|_| Default::default()).collect();
     let view = |i: usize| View::Half(edges[patches.edge[i / q] as usize].normal);
     let culled = std::sync::atomic::AtomicU64::new(0);
     let mut stats = for_each_visibility(geometry, &pos, &pixel, &view, reach, None, &|i, spans| {
         let mut out = Vec::new();
-        let c = point_factors(edges, patches, pos[i], edges[patches.edge[i / q] as usize].normal, spans, falloff, reach, &mut out);
+        let c = point_factors(
+            edges,
+            patches,
+            pos[i],
+            edges[patches.edge[i / q] as usize].normal,
+            spans,
+            falloff,
+            reach,
+            &mut out,
+        );
         culled.fetch_add(c, std::sync::atomic::Ordering::Relaxed);
         *results[i].lock().expect("no panics while holding the lock") = out;
     });
@@ -498,7 +569,9 @@ pub fn form_factors(
         .map(|p| {
             let mut row: Vec<(u32, f64)> = Vec::new();
             for (k, w) in ws.iter().enumerate() {
-                let r = results[p * q + k].lock().expect("no panics while holding the lock");
+                let r = results[p * q + k]
+                    .lock()
+                    .expect("no panics while holding the lock");
                 row.extend(r.iter().map(|&(j, v)| (j, v * w)));
             }
             row.sort_by_key(|e| e.0);
@@ -512,7 +585,12 @@ pub fn form_factors(
             merged
         })
         .collect();
-    let mut points = PointRows { q, row_ptr: Vec::with_capacity(n * q + 1), col: Vec::new(), val: Vec::new() };
+    let mut points = PointRows {
+        q,
+        row_ptr: Vec::with_capacity(n * q + 1),
+        col: Vec::new(),
+        val: Vec::new(),
+    };
     points.row_ptr.push(0);
     for r in results {
         let r = r.into_inner().expect("no panics while holding the lock");

@@ -76,7 +76,11 @@ impl Piece {
     /// Ray parameter of the piece's line along local direction `(du, dv)`.
     #[inline]
     fn t(&self, du: f64, dv: f64) -> f64 {
-        if self.u_const { self.c / du } else { self.c / dv }
+        if self.u_const {
+            self.c / du
+        } else {
+            self.c / dv
+        }
     }
 
     /// Distance from the query point to the piece along pseudo-angle `k`.
@@ -96,7 +100,11 @@ impl Piece {
         }
         let line = e.line();
         let s = if e.normal.is_vertical_edge() {
-            if v[0] == line { v[1] } else { p[1] + (v[1] - p[1]) * (line - p[0]) / (v[0] - p[0]) }
+            if v[0] == line {
+                v[1]
+            } else {
+                p[1] + (v[1] - p[1]) * (line - p[0]) / (v[0] - p[0])
+            }
         } else if v[1] == line {
             v[0]
         } else {
@@ -120,7 +128,11 @@ struct Event {
 #[inline]
 pub fn diamond(u: f64, v: f64) -> f64 {
     if v >= 0.0 {
-        if u > 0.0 { v / (u + v) } else { 1.0 + (-u) / (v - u) }
+        if u > 0.0 {
+            v / (u + v)
+        } else {
+            1.0 + (-u) / (v - u)
+        }
     } else if u < 0.0 {
         2.0 + (-v) / (-u - v)
     } else {
@@ -164,18 +176,30 @@ impl Query {
                 ([t[0] as f64, t[1] as f64], [nv[0] as f64, nv[1] as f64])
             }
         };
-        Query { p, full: view == View::Full, eu, ev, comp }
+        Query {
+            p,
+            full: view == View::Full,
+            eu,
+            ev,
+            comp,
+        }
     }
 
     #[inline]
     fn local(&self, q: [f64; 2]) -> (f64, f64) {
         let d = [q[0] - self.p[0], q[1] - self.p[1]];
-        (d[0] * self.eu[0] + d[1] * self.eu[1], d[0] * self.ev[0] + d[1] * self.ev[1])
+        (
+            d[0] * self.eu[0] + d[1] * self.eu[1],
+            d[0] * self.ev[0] + d[1] * self.ev[1],
+        )
     }
 
     #[inline]
     fn global(&self, u: f64, v: f64) -> [f64; 2] {
-        [self.p[0] + u * self.eu[0] + v * self.ev[0], self.p[1] + u * self.eu[1] + v * self.ev[1]]
+        [
+            self.p[0] + u * self.eu[0] + v * self.ev[0],
+            self.p[1] + u * self.eu[1] + v * self.ev[1],
+        ]
     }
 
     /// Largest pseudo-angle of the view.
@@ -199,21 +223,55 @@ impl Query {
         let c = if u_const { au } else { av };
         let mut push = |(pu, pv, ps): (f64, f64, f64), (qu, qv, qs): (f64, f64, f64)| {
             let lower = pv < 0.0 || qv < 0.0;
-            let key = |u: f64, v: f64| if self.full && v == 0.0 && u > 0.0 && lower { 4.0 } else { diamond(u, v) };
+            let key = |u: f64, v: f64| {
+                if self.full && v == 0.0 && u > 0.0 && lower {
+                    4.0
+                } else {
+                    diamond(u, v)
+                }
+            };
             let (k0, k1) = (key(pu, pv), key(qu, qv));
             if k0 == k1 {
                 return;
             }
             let (v0, v1) = (self.global(pu, pv), self.global(qu, qv));
             out.push(if k0 < k1 {
-                Piece { edge: ei, u_const, c, ka: k0, kb: k1, sa: ps, sb: qs, va: v0, vb: v1 }
+                Piece {
+                    edge: ei,
+                    u_const,
+                    c,
+                    ka: k0,
+                    kb: k1,
+                    sa: ps,
+                    sb: qs,
+                    va: v0,
+                    vb: v1,
+                }
             } else {
-                Piece { edge: ei, u_const, c, ka: k1, kb: k0, sa: qs, sb: ps, va: v1, vb: v0 }
+                Piece {
+                    edge: ei,
+                    u_const,
+                    c,
+                    ka: k1,
+                    kb: k0,
+                    sa: qs,
+                    sb: ps,
+                    va: v1,
+                    vb: v0,
+                }
             });
         };
         let (pa, pb) = ((au, av, lo), (bu, bv, hi));
         // Where a u-const piece meets v = 0: level with `p` along its axis.
-        let m = (c, 0.0, if e.normal.is_vertical_edge() { self.p[1] } else { self.p[0] });
+        let m = (
+            c,
+            0.0,
+            if e.normal.is_vertical_edge() {
+                self.p[1]
+            } else {
+                self.p[0]
+            },
+        );
         if self.full {
             if u_const && c > 0.0 && av.min(bv) < 0.0 && av.max(bv) > 0.0 {
                 // Split at the cut ray (+u); the halves meet at v = 0.
@@ -319,7 +377,12 @@ struct Coverage {
 impl Coverage {
     fn reset(&mut self, kmax: f64) {
         self.iv.clear();
-        self.iv.push(Iv { end: kmax, vend: [0.0; 2], owner: NONE, far: f64::INFINITY });
+        self.iv.push(Iv {
+            end: kmax,
+            vend: [0.0; 2],
+            owner: NONE,
+            far: f64::INFINITY,
+        });
     }
 
     #[inline]
@@ -387,12 +450,31 @@ impl Coverage {
                 tp < to || (tp == to && pi < v.owner)
             };
             if lo > s {
-                self.scratch.push(Iv { end: lo, vend: pc.va, owner: v.owner, far: 0.0 });
+                self.scratch.push(Iv {
+                    end: lo,
+                    vend: pc.va,
+                    owner: v.owner,
+                    far: 0.0,
+                });
             }
-            let vhi = if hi == pc.kb && hi < v.end { pc.vb } else { v.vend };
-            self.scratch.push(Iv { end: hi, vend: vhi, owner: if wins { pi } else { v.owner }, far: 0.0 });
+            let vhi = if hi == pc.kb && hi < v.end {
+                pc.vb
+            } else {
+                v.vend
+            };
+            self.scratch.push(Iv {
+                end: hi,
+                vend: vhi,
+                owner: if wins { pi } else { v.owner },
+                far: 0.0,
+            });
             if v.end > hi {
-                self.scratch.push(Iv { end: v.end, vend: v.vend, owner: v.owner, far: 0.0 });
+                self.scratch.push(Iv {
+                    end: v.end,
+                    vend: v.vend,
+                    owner: v.owner,
+                    far: 0.0,
+                });
             }
             i += 1;
         }
@@ -408,10 +490,17 @@ impl Coverage {
         let mut out = Vec::with_capacity(self.scratch.len());
         let mut seg_start = self.start(a);
         for (j, t) in self.scratch.iter().enumerate() {
-            if self.scratch.get(j + 1).is_some_and(|next| next.owner == t.owner) {
+            if self
+                .scratch
+                .get(j + 1)
+                .is_some_and(|next| next.owner == t.owner)
+            {
                 continue;
             }
-            out.push(Iv { far: piece_far(t.owner, seg_start, t.end), ..*t });
+            out.push(Iv {
+                far: piece_far(t.owner, seg_start, t.end),
+                ..*t
+            });
             seg_start = t.end;
         }
         self.iv.splice(a..b, out);
@@ -441,13 +530,20 @@ impl Blocks {
         let blocks_of = |e: &Edge| {
             let (lo, hi) = e.extent();
             let line = e.line() as i32;
-            let (a0, a1) = (lo as i32 / size, ((hi as i32 + size - 1) / size - 1).max(lo as i32 / size));
+            let (a0, a1) = (
+                lo as i32 / size,
+                ((hi as i32 + size - 1) / size - 1).max(lo as i32 / size),
+            );
             let l = line / size;
             (a0, a1, l)
         };
         let mut count0 = vec![0usize; nx * ny + 1];
         let id = |e: &Edge, a: i32, l: i32| {
-            let (bx, by) = if e.normal.is_vertical_edge() { (l, a) } else { (a, l) };
+            let (bx, by) = if e.normal.is_vertical_edge() {
+                (l, a)
+            } else {
+                (a, l)
+            };
             by.clamp(0, ny as i32 - 1) as usize * nx + bx.clamp(0, nx as i32 - 1) as usize
         };
         for e in &g.edges {
@@ -471,7 +567,11 @@ impl Blocks {
             }
         }
         let mut dims = vec![(nx, ny)];
-        let mut counts = vec![(0..nx * ny).map(|b| (start[b + 1] - start[b]) as u32).collect::<Vec<u32>>()];
+        let mut counts = vec![
+            (0..nx * ny)
+                .map(|b| (start[b + 1] - start[b]) as u32)
+                .collect::<Vec<u32>>(),
+        ];
         while dims.last().is_some_and(|&(x, y)| x > 1 || y > 1) {
             let (px, py) = *dims.last().expect("non-empty");
             let (cx, cy) = (px.div_ceil(2), py.div_ceil(2));
@@ -485,7 +585,13 @@ impl Blocks {
             dims.push((cx, cy));
             counts.push(c);
         }
-        Blocks { size, dims, counts, start, list }
+        Blocks {
+            size,
+            dims,
+            counts,
+            start,
+            list,
+        }
     }
 }
 
@@ -509,7 +615,15 @@ impl Sweeper {
     /// The visible spans seen from `p` looking into `view`, among `candidates`
     /// (indices into `edges`) that belong to free-space component `comp`.
     /// Spans are appended to `out` in increasing pseudo-angle.
-    pub fn sweep(&mut self, edges: &[Edge], candidates: &[u32], p: [f64; 2], view: View, comp: u32, out: &mut Vec<Span>) {
+    pub fn sweep(
+        &mut self,
+        edges: &[Edge],
+        candidates: &[u32],
+        p: [f64; 2],
+        view: View,
+        comp: u32,
+        out: &mut Vec<Span>,
+    ) {
         let q = Query::new(p, view, comp);
         self.pieces.clear();
         self.events.clear();
@@ -520,8 +634,18 @@ impl Sweeper {
             return;
         }
         for (id, pc) in self.pieces.iter().enumerate() {
-            self.events.push(Event { key: pc.ka, vertex: pc.va, piece: id as u32, insert: true });
-            self.events.push(Event { key: pc.kb, vertex: pc.vb, piece: id as u32, insert: false });
+            self.events.push(Event {
+                key: pc.ka,
+                vertex: pc.va,
+                piece: id as u32,
+                insert: true,
+            });
+            self.events.push(Event {
+                key: pc.kb,
+                vertex: pc.vb,
+                piece: id as u32,
+                insert: false,
+            });
         }
         self.events.sort_unstable_by(|x, y| x.key.total_cmp(&y.key));
         self.active.clear();
@@ -654,7 +778,12 @@ impl Sweeper {
             let (cnx, cny) = blocks.dims[level as usize - 1];
             let mut kids: [(f64, u32, u32); 4] = [(f64::INFINITY, 0, 0); 4];
             let mut k = 0;
-            for (cx, cy) in [(2 * x, 2 * y), (2 * x + 1, 2 * y), (2 * x, 2 * y + 1), (2 * x + 1, 2 * y + 1)] {
+            for (cx, cy) in [
+                (2 * x, 2 * y),
+                (2 * x + 1, 2 * y),
+                (2 * x, 2 * y + 1),
+                (2 * x + 1, 2 * y + 1),
+            ] {
                 if (cx as usize) < cnx && (cy as usize) < cny {
                     let half = side / 2.0;
                     let (mx, my) = ((cx as f64 + 0.5) * half, (cy as f64 + 0.5) * half);
@@ -678,22 +807,47 @@ impl Sweeper {
             let e = &edges[pc.edge as usize];
             let (k0, k1) = (cover.start(i), cover.iv[i].end);
             let v0 = if i == 0 { pc.va } else { cover.iv[i - 1].vend };
-            let (a, b) = (pc.axis_at(e, p, k0, v0), pc.axis_at(e, p, k1, cover.iv[i].vend));
+            let (a, b) = (
+                pc.axis_at(e, p, k0, v0),
+                pc.axis_at(e, p, k1, cover.iv[i].vend),
+            );
             let (s0, s1) = if a <= b { (a, b) } else { (b, a) };
             if s1 > s0 {
-                out.push(Span { edge: pc.edge, s0, s1, k0, k1 });
+                out.push(Span {
+                    edge: pc.edge,
+                    s0,
+                    s1,
+                    k0,
+                    k1,
+                });
             }
         }
     }
 
     #[allow(clippy::too_many_arguments)]
-    fn emit(&self, edges: &[Edge], p: [f64; 2], piece: u32, k0: f64, v0: [f64; 2], k1: f64, v1: [f64; 2], out: &mut Vec<Span>) {
+    fn emit(
+        &self,
+        edges: &[Edge],
+        p: [f64; 2],
+        piece: u32,
+        k0: f64,
+        v0: [f64; 2],
+        k1: f64,
+        v1: [f64; 2],
+        out: &mut Vec<Span>,
+    ) {
         let pc = &self.pieces[piece as usize];
         let e = &edges[pc.edge as usize];
         let (a, b) = (pc.axis_at(e, p, k0, v0), pc.axis_at(e, p, k1, v1));
         let (s0, s1) = if a <= b { (a, b) } else { (b, a) };
         if s1 > s0 {
-            out.push(Span { edge: pc.edge, s0, s1, k0, k1 });
+            out.push(Span {
+                edge: pc.edge,
+                s0,
+                s1,
+                k0,
+                k1,
+            });
         }
     }
 }
@@ -726,9 +880,19 @@ impl Rect {
         let (lo, hi) = e.extent();
         let line = e.line();
         let (r_lo, r_hi, p_lo, p_hi) = if e.normal.is_vertical_edge() {
-            (self.y0 as f64, self.y1 as f64, self.x0 as f64, self.x1 as f64)
+            (
+                self.y0 as f64,
+                self.y1 as f64,
+                self.x0 as f64,
+                self.x1 as f64,
+            )
         } else {
-            (self.x0 as f64, self.x1 as f64, self.y0 as f64, self.y1 as f64)
+            (
+                self.x0 as f64,
+                self.x1 as f64,
+                self.y0 as f64,
+                self.y1 as f64,
+            )
         };
         let da = (r_lo - hi).max(lo - r_hi).max(0.0);
         let dp = (p_lo - line).max(line - p_hi).max(0.0);
@@ -757,7 +921,11 @@ impl Rect {
 /// pairs is exact.
 pub fn run_hides(r: &Rect, e: &Edge, s: &Run) -> bool {
     let vertical = s.normal.is_vertical_edge();
-    let sign: i64 = if matches!(s.normal, Normal::Right | Normal::Down) { 1 } else { -1 };
+    let sign: i64 = if matches!(s.normal, Normal::Right | Normal::Down) {
+        1
+    } else {
+        -1
+    };
     // (perpendicular coordinate, along coordinate) of a point.
     let split = |x: i64, y: i64| if vertical { (x, y) } else { (y, x) };
     let line = s.line as i64;
@@ -832,7 +1000,9 @@ impl LeafRegions {
     pub fn candidates_at(&self, px: [i32; 2]) -> Option<&[u32]> {
         let w = self.rect.width();
         let l = self.label[((px[1] - self.rect.y0) * w + px[0] - self.rect.x0) as usize];
-        self.regions.get(l as usize).map_or(Some(&[]), |r| r.candidates.as_deref())
+        self.regions
+            .get(l as usize)
+            .map_or(Some(&[]), |r| r.candidates.as_deref())
     }
 }
 
@@ -858,7 +1028,12 @@ impl<'g> TileTree<'g> {
                     continue;
                 }
                 let id = regions.len() as u8;
-                let mut bbox = Rect { x0: i32::MAX, y0: i32::MAX, x1: i32::MIN, y1: i32::MIN };
+                let mut bbox = Rect {
+                    x0: i32::MAX,
+                    y0: i32::MAX,
+                    x1: i32::MIN,
+                    y1: i32::MIN,
+                };
                 label[(y0 * w + x0) as usize] = id;
                 stack.push((x0, y0));
                 while let Some((x, y)) = stack.pop() {
@@ -870,7 +1045,13 @@ impl<'g> TileTree<'g> {
                     };
                     for (dx, dy) in [(-1, 0), (1, 0), (0, -1), (0, 1)] {
                         let (nx, ny) = (x + dx, y + dy);
-                        if nx >= 0 && ny >= 0 && nx < w && ny < h && label[(ny * w + nx) as usize] == u8::MAX && free(r.x0 + nx, r.y0 + ny) {
+                        if nx >= 0
+                            && ny >= 0
+                            && nx < w
+                            && ny < h
+                            && label[(ny * w + nx) as usize] == u8::MAX
+                            && free(r.x0 + nx, r.y0 + ny)
+                        {
                             label[(ny * w + nx) as usize] = id;
                             stack.push((nx, ny));
                         }
@@ -886,18 +1067,37 @@ impl<'g> TileTree<'g> {
                             e.component == component && bbox.sees_front_of(e)
                         })
                         .collect();
-                    let mine = if mine.len() <= 4 * Self::SWEEP_MAX { self.cull_hidden(bbox, mine) } else { mine };
+                    let mine = if mine.len() <= 4 * Self::SWEEP_MAX {
+                        self.cull_hidden(bbox, mine)
+                    } else {
+                        mine
+                    };
                     (mine.len() <= Self::SWEEP_MAX).then_some(mine)
                 });
-                regions.push(Region { bbox, component, candidates });
+                regions.push(Region {
+                    bbox,
+                    component,
+                    candidates,
+                });
             }
         }
-        LeafRegions { rect: r, label, regions }
+        LeafRegions {
+            rect: r,
+            label,
+            regions,
+        }
     }
 
     pub fn new(geometry: &'g Geometry) -> Self {
-        let mut comp_bbox =
-            vec![Rect { x0: i32::MAX, y0: i32::MAX, x1: i32::MIN, y1: i32::MIN }; geometry.component_count as usize];
+        let mut comp_bbox = vec![
+            Rect {
+                x0: i32::MAX,
+                y0: i32::MAX,
+                x1: i32::MIN,
+                y1: i32::MIN
+            };
+            geometry.component_count as usize
+        ];
         for y in 0..geometry.height {
             for x in 0..geometry.width {
                 let c = geometry.components[y * geometry.width + x];
@@ -911,7 +1111,11 @@ impl<'g> TileTree<'g> {
                 b.y1 = b.y1.max(y as i32 + 1);
             }
         }
-        TileTree { geometry, leaf: Self::LEAF, comp_bbox }
+        TileTree {
+            geometry,
+            leaf: Self::LEAF,
+            comp_bbox,
+        }
     }
 
     /// Calls `visit(leaf)` for every leaf tile holding query points
@@ -929,7 +1133,12 @@ impl<'g> TileTree<'g> {
         while size < g.width.max(g.height) as i32 {
             size *= 2;
         }
-        let root = Rect { x0: 0, y0: 0, x1: g.width as i32, y1: g.height as i32 };
+        let root = Rect {
+            x0: 0,
+            y0: 0,
+            x1: g.width as i32,
+            y1: g.height as i32,
+        };
         let all: Vec<u32> = (0..g.edges.len() as u32).collect();
         let culled = std::sync::atomic::AtomicU64::new(0);
         self.node(root, size, Some(&all), count, reach_max, &culled, visit);
@@ -963,7 +1172,8 @@ impl<'g> TileTree<'g> {
                 .copied()
                 .filter(|&ei| {
                     let e = &g.edges[ei as usize];
-                    let keep = r.sees_front_of(e) && self.comp_bbox[e.component as usize].intersects(&r);
+                    let keep =
+                        r.sees_front_of(e) && self.comp_bbox[e.component as usize].intersects(&r);
                     if keep && reach_max.is_finite() && r.distance_to(e) > reach_max {
                         far += 1;
                         return false;
@@ -982,10 +1192,30 @@ impl<'g> TileTree<'g> {
         let cands = cands.filter(|c| c.len() <= Self::REFINE_MAX);
         let h = size / 2;
         let kids = [
-            Rect { x0: r.x0, y0: r.y0, x1: (r.x0 + h).min(r.x1), y1: (r.y0 + h).min(r.y1) },
-            Rect { x0: r.x0 + h, y0: r.y0, x1: r.x1, y1: (r.y0 + h).min(r.y1) },
-            Rect { x0: r.x0, y0: r.y0 + h, x1: (r.x0 + h).min(r.x1), y1: r.y1 },
-            Rect { x0: r.x0 + h, y0: r.y0 + h, x1: r.x1, y1: r.y1 },
+            Rect {
+                x0: r.x0,
+                y0: r.y0,
+                x1: (r.x0 + h).min(r.x1),
+                y1: (r.y0 + h).min(r.y1),
+            },
+            Rect {
+                x0: r.x0 + h,
+                y0: r.y0,
+                x1: r.x1,
+                y1: (r.y0 + h).min(r.y1),
+            },
+            Rect {
+                x0: r.x0,
+                y0: r.y0 + h,
+                x1: (r.x0 + h).min(r.x1),
+                y1: r.y1,
+            },
+            Rect {
+                x0: r.x0 + h,
+                y0: r.y0 + h,
+                x1: r.x1,
+                y1: r.y1,
+            },
         ];
         rayon::scope(|s| {
             for k in kids {
@@ -1032,7 +1262,10 @@ impl<'g> TileTree<'g> {
             }
             let owner = |k: f64| -> Option<u32> {
                 let i = spans.partition_point(|s| s.k1 <= k);
-                spans.get(i).filter(|s| s.k0 <= k).map(|s| g.edges[s.edge as usize].run)
+                spans
+                    .get(i)
+                    .filter(|s| s.k0 <= k)
+                    .map(|s| g.edges[s.edge as usize].run)
             };
             for (i, &ei) in cands.iter().enumerate() {
                 let e = &g.edges[ei as usize];
@@ -1041,7 +1274,14 @@ impl<'g> TileTree<'g> {
                 }
                 let (lo, hi) = e.extent();
                 let mut tried: [u32; 3] = [u32::MAX; 3];
-                for (t, s) in [0.5 * (lo + hi), lo + 0.25 * (hi - lo), hi - 0.25 * (hi - lo)].into_iter().enumerate() {
+                for (t, s) in [
+                    0.5 * (lo + hi),
+                    lo + 0.25 * (hi - lo),
+                    hi - 0.25 * (hi - lo),
+                ]
+                .into_iter()
+                .enumerate()
+                {
                     let pt = e.point_at(s);
                     let k = diamond(pt[0] - q[0], pt[1] - q[1]);
                     let Some(run) = owner(k) else { continue };
@@ -1056,6 +1296,10 @@ impl<'g> TileTree<'g> {
                 }
             }
         }
-        cands.into_iter().zip(keep).filter_map(|(c, k)| k.then_some(c)).collect()
+        cands
+            .into_iter()
+            .zip(keep)
+            .filter_map(|(c, k)| k.then_some(c))
+            .collect()
     }
 }

@@ -22,12 +22,18 @@ fn closed_room_is_e_over_one_minus_r() {
             let baked = bake(&lvl, &Settings::new(q), &quiet).unwrap();
             let want = e / (1.0 - r);
             for b in &baked.radiosity[0] {
-                assert!((b / want - 1.0).abs() < 1e-6, "{q} r={r}: patch {b} vs {want}");
+                assert!(
+                    (b / want - 1.0).abs() < 1e-6,
+                    "{q} r={r}: patch {b} vs {want}"
+                );
             }
             for (i, c) in lvl.cells.iter().enumerate() {
                 if *c == flatbake::level::Cell::Floor {
                     let v = baked.lightmap.rgb[i][0] as f64;
-                    assert!((v / want - 1.0).abs() < 1e-5, "{q} r={r}: pixel {i} {v} vs {want}");
+                    assert!(
+                        (v / want - 1.0).abs() < 1e-5,
+                        "{q} r={r}: pixel {i} {v} vs {want}"
+                    );
                 }
             }
         }
@@ -50,7 +56,13 @@ fn rows_sum_to_one_in_a_closed_room_and_reciprocity_holds() {
     for q in Quality::ALL {
         let k = q.knobs();
         let p = Patches::new(&g, k.patch_len);
-        let (ff, _, _) = form_factors(&g, &p, k.quad, None, &flatbake::kernel::Reach::unlimited(g.edges.len()));
+        let (ff, _, _) = form_factors(
+            &g,
+            &p,
+            k.quad,
+            None,
+            &flatbake::kernel::Reach::unlimited(g.edges.len()),
+        );
         let mut worst: f64 = 0.0;
         for i in 0..p.len() {
             let s: f64 = ff.row(i).map(|x| x.1).sum();
@@ -70,7 +82,10 @@ fn rows_sum_to_one_in_a_closed_room_and_reciprocity_holds() {
             Quality::High => 0.003,
             Quality::Reference => 5e-4,
         };
-        assert!(worst < bound, "{q}: worst reciprocity error {worst:.3e} over {bound}");
+        assert!(
+            worst < bound,
+            "{q}: worst reciprocity error {worst:.3e} over {bound}"
+        );
     }
 }
 
@@ -98,7 +113,10 @@ fn lone_emitter_reads_its_subtended_angle() {
                 let p = [x as f64 + 0.5, y as f64 + 0.5];
                 let corners = [[8.0, 6.0], [12.0, 6.0], [12.0, 8.0], [8.0, 8.0]];
                 // Angle subtended by a convex block: largest angle between corner rays.
-                let ang: Vec<f64> = corners.iter().map(|c: &[f64; 2]| (c[1] - p[1]).atan2(c[0] - p[0])).collect();
+                let ang: Vec<f64> = corners
+                    .iter()
+                    .map(|c: &[f64; 2]| (c[1] - p[1]).atan2(c[0] - p[0]))
+                    .collect();
                 let mut best: f64 = 0.0;
                 for a in &ang {
                     for b in &ang {
@@ -111,7 +129,10 @@ fn lone_emitter_reads_its_subtended_angle() {
                 }
                 let want = e * best / std::f64::consts::TAU;
                 let got = baked.lightmap.rgb[y * 20 + x][0] as f64;
-                assert!((got - want).abs() < 1e-5 * want.max(1e-3), "{q} ({x},{y}): {got} vs {want}");
+                assert!(
+                    (got - want).abs() < 1e-5 * want.max(1e-3),
+                    "{q} ({x},{y}): {got} vs {want}"
+                );
             }
         }
     }

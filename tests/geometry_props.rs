@@ -31,7 +31,11 @@ fn level_strategy() -> impl Strategy<Value = Level> {
 }
 
 fn solid(l: &Level, x: i32, y: i32) -> bool {
-    x >= 0 && y >= 0 && (x as usize) < l.width && (y as usize) < l.height && l.cell(x as usize, y as usize).is_solid()
+    x >= 0
+        && y >= 0
+        && (x as usize) < l.width
+        && (y as usize) < l.height
+        && l.cell(x as usize, y as usize).is_solid()
 }
 
 /// Every exposed side of every solid pixel, as (pixel, normal).
@@ -154,7 +158,10 @@ proptest! {
 /// A rectangle of wall pixels is one loop of four edges.
 #[test]
 fn a_rectangle_is_one_loop_of_four_edges() {
-    let lvl = ascii(&["......", ".####.", ".####.", "......"], &[('#', wall(0.5))]);
+    let lvl = ascii(
+        &["......", ".####.", ".####.", "......"],
+        &[('#', wall(0.5))],
+    );
     let g = trace(&lvl);
     assert_eq!(g.loops.len(), 1);
     assert_eq!(g.loops[0].edges.len(), 4);
@@ -169,7 +176,10 @@ fn diagonal_pixels_are_separate_loops_meeting_at_the_corner() {
     assert_eq!(g.loops.len(), 2);
     let shared = [2, 2];
     for lp in &g.loops {
-        assert!(lp.vertices.contains(&shared), "each loop has the shared corner");
+        assert!(
+            lp.vertices.contains(&shared),
+            "each loop has the shared corner"
+        );
     }
     // The free pixels on either side of the diagonal touch only at corners,
     // but they are connected around the ends: one component.
@@ -179,7 +189,10 @@ fn diagonal_pixels_are_separate_loops_meeting_at_the_corner() {
 /// A material change splits a straight run.
 #[test]
 fn material_change_splits_a_run() {
-    let lvl = ascii(&["......", ".##LL.", "......"], &[('#', wall(0.5)), ('L', light(1.0, 0.0))]);
+    let lvl = ascii(
+        &["......", ".##LL.", "......"],
+        &[('#', wall(0.5)), ('L', light(1.0, 0.0))],
+    );
     let g = trace(&lvl);
     assert_eq!(g.loops.len(), 1);
     // Top and bottom each split in two: 2 + 2 + left + right = 6.
@@ -191,7 +204,11 @@ fn material_change_splits_a_run() {
 fn border_facing_edges_are_not_transport_edges() {
     let lvl = ascii(&["###", "#.#", "###"], &[('#', wall(0.5))]);
     let g = trace(&lvl);
-    let outer: usize = g.loops.iter().map(|l| l.edges.iter().filter(|e| e.transport.is_none()).count()).sum();
+    let outer: usize = g
+        .loops
+        .iter()
+        .map(|l| l.edges.iter().filter(|e| e.transport.is_none()).count())
+        .sum();
     assert_eq!(outer, 4);
     assert_eq!(g.edges.len(), 4, "only the four inner walls face the floor");
 }

@@ -13,7 +13,17 @@ fn level_strategy() -> impl Strategy<Value = Level> {
     (2usize..24, 2usize..24, 0u8..4).prop_flat_map(|(w, h, density)| {
         proptest::collection::vec(0u8..16, w * h).prop_map(move |v| {
             let rows: Vec<String> = (0..h)
-                .map(|y| (0..w).map(|x| if v[y * w + x] < 2 + density * 2 { '#' } else { '.' }).collect())
+                .map(|y| {
+                    (0..w)
+                        .map(|x| {
+                            if v[y * w + x] < 2 + density * 2 {
+                                '#'
+                            } else {
+                                '.'
+                            }
+                        })
+                        .collect()
+                })
                 .collect();
             ascii(&refs(&rows), &[('#', wall(0.5))])
         })
@@ -114,8 +124,12 @@ proptest! {
 /// `n` strokes on up to `size` pixels a side (dense enough, the regions get
 /// long candidate lists and use the occlusion walk).
 fn structured_strategy(size: usize, n: usize) -> impl Strategy<Value = Level> {
-    (20usize..size, 20usize..size, proptest::collection::vec((0usize..size, 0usize..size, 1usize..30, 0u8..3), 1..n)).prop_map(
-        |(w, h, rects)| {
+    (
+        20usize..size,
+        20usize..size,
+        proptest::collection::vec((0usize..size, 0usize..size, 1usize..30, 0u8..3), 1..n),
+    )
+        .prop_map(|(w, h, rects)| {
             let mut grid = vec![vec!['.'; w]; h];
             for (x, y, len, kind) in rects {
                 for k in 0..len {
@@ -131,8 +145,7 @@ fn structured_strategy(size: usize, n: usize) -> impl Strategy<Value = Level> {
             }
             let rows: Vec<String> = grid.into_iter().map(|r| r.into_iter().collect()).collect();
             ascii(&refs(&rows), &[('#', wall(0.5))])
-        },
-    )
+        })
 }
 
 proptest! {
@@ -166,10 +179,19 @@ fn same_as_full_sweep(l: &Level) -> Result<(), TestCaseError> {
                 }
             }
         }
-        let got: Vec<std::sync::Mutex<Vec<Span>>> = (0..pixels.len()).map(|_| Default::default()).collect();
-        for_each_visibility(&g, &pos, &pixels, &|_| View::Full, &flatbake::kernel::Reach::unlimited(g.edges.len()), None, &|i, spans: &[Span]| {
-            *got[i].lock().unwrap() = spans.to_vec();
-        });
+        let got: Vec<std::sync::Mutex<Vec<Span>>> =
+            (0..pixels.len()).map(|_| Default::default()).collect();
+        for_each_visibility(
+            &g,
+            &pos,
+            &pixels,
+            &|_| View::Full,
+            &flatbake::kernel::Reach::unlimited(g.edges.len()),
+            None,
+            &|i, spans: &[Span]| {
+                *got[i].lock().unwrap() = spans.to_vec();
+            },
+        );
         let mut sw = Sweeper::new();
         for (i, px) in pixels.iter().enumerate() {
             let comp = g.component_at(px[0] as i64, px[1] as i64).unwrap();

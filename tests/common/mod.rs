@@ -6,7 +6,14 @@ use flatbake::material::{Material, MaterialKind};
 
 /// A wall material.
 pub fn wall(r: f64) -> Material {
-    Material { color: [0, 0, 0], kind: MaterialKind::Wall, reflectance: [r; 3], emission: [0.0; 3], group: None, line: None }
+    Material {
+        color: [0, 0, 0],
+        kind: MaterialKind::Wall,
+        reflectance: [r; 3],
+        emission: [0.0; 3],
+        group: None,
+        line: None,
+    }
 }
 
 /// An emitter material.
@@ -36,11 +43,18 @@ pub fn ascii(rows: &[&str], legend: &[(char, Material)]) -> Level {
                 '.' => Cell::Floor,
                 ' ' => Cell::Void,
                 c => {
-                    let i = legend.iter().position(|(k, _)| *k == c).unwrap_or_else(|| panic!("no material for {c:?}"));
+                    let i = legend
+                        .iter()
+                        .position(|(k, _)| *k == c)
+                        .unwrap_or_else(|| panic!("no material for {c:?}"));
                     Cell::Solid(i as u16)
                 }
             };
-            albedo.push(if cell == Cell::Floor { [0.5; 3] } else { [0.0; 3] });
+            albedo.push(if cell == Cell::Floor {
+                [0.5; 3]
+            } else {
+                [0.0; 3]
+            });
             cells.push(cell);
         }
     }
@@ -58,7 +72,17 @@ pub fn ascii(rows: &[&str], legend: &[(char, Material)]) -> Level {
 /// A closed rectangular room `w x h` (walls included) of one material.
 pub fn room(w: usize, h: usize) -> Vec<String> {
     (0..h)
-        .map(|y| (0..w).map(|x| if x == 0 || y == 0 || x == w - 1 || y == h - 1 { '#' } else { '.' }).collect())
+        .map(|y| {
+            (0..w)
+                .map(|x| {
+                    if x == 0 || y == 0 || x == w - 1 || y == h - 1 {
+                        '#'
+                    } else {
+                        '.'
+                    }
+                })
+                .collect()
+        })
         .collect()
 }
 

@@ -1,0 +1,479 @@
+//! The command line: flags parsed by clap into raw structs, validated into
+//! library options, and the results reported to people.
+//!
+//! Exit status: 0 when everything asked for succeeded, 1 when at least one
+//! level (or other input) failed, 2 when the command line itself is wrong.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::Mutex;
+use std::time::Duration;
+
+use clap::{Args, Parser, Subcommand};
+use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
+
+use crate::bake::GatherMethod;
+use crate::batch::{self, BatchOptions, LevelOutcome, Observer};
+use crate::gather::Kernel;
+use crate::level::LoadLimits;
+use crate::output::Depth;
+use crate::quality::Quality;
+
+/// Exit status when every level baked.
+pub const EXIT_OK: u8 = 0;
+/// Exit status when at least one level failed.
+pub const EXIT_FAILED: u8 = 1;
+/// Exit status for a malformed command line (clap's own convention).
+pub const EXIT_USAGE: u8 = 2;
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "flatbake",
+    version,
+    about = "Bake 2D radiosity lightmaps for levels painted as bitmaps",
+    after_help = "Exit status: 0 all levels baked, 1 at least one level failed, 2 bad command line."
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Bake levels (image files, or folders of them) into lightmaps.
+    Bake(BakeArgs),
+    /// Show the built-in palette (or one palette file).
+    Palette(PaletteArgs),
+    /// Measure the price of accuracy: bake at every preset, time it, compare to reference.
+    Sweep(SweepArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct SweepArgs {
+    /// Level images or folders of level images.
+    #[arg(required = true)]
+    pub levels: Vec<PathBuf>,
+    /// Folder for accuracy.csv, accuracy.md and accuracy.png.
+    #[arg(short = 'o', long = "out", default_value = "out/sweep")]
+    pub out: PathBuf,
+    /// Worker threads (default: all cores).
+    #[arg(short, long, value_name = "N")]
+    pub jobs: Option<usize>,
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct BakeArgs {
+    /// Level images or folders of level images.
+    #[arg(required = true)]
+    pub paths: Vec<PathBuf>,
+    /// Output folder.
+    #[arg(short = 'o', long = "out", default_value = "out")]
+    pub out: PathBuf,
+    /// Accuracy preset: draft (preview), normal (daily), high (shipping), reference (converged).
+    #[arg(short, long, value_enum, default_value_t = Quality::Normal)]
+    pub quality: Quality,
+    /// Light falloff: half-energy distance in pixels (overrides the palette).
+    #[arg(long, value_name = "PIXELS")]
+    pub falloff: Option<f64>,
+    /// Transport kernel: exact flatland radiosity, or the paper's equations 4-5.
+    #[arg(long, value_enum, default_value_t = KernelArg::Flatland)]
+    pub kernel: KernelArg,
+    /// Floor gather: fast exact visibility, or the paper's naive ray tests (baseline).
+    #[arg(long, value_enum, default_value_t = GatherMethod::Fast)]
+    pub gather: GatherMethod,
+    /// Palette for every level (instead of the lookup beside each level).
+    #[arg(long, value_name = "FILE")]
+    pub palette: Option<PathBuf>,
+    /// Truncate the bounce series: 0 = direct light only (overrides the palette).
+    #[arg(long, value_name = "N")]
+    pub bounces: Option<u32>,
+    /// Also write NAME.lightmap.exr (linear 32-bit float).
+    #[arg(long)]
+    pub hdr: bool,
+    /// Also write NAME.lightmap.rgbm.png (8-bit RGBM, range 6).
+    #[arg(long)]
+    pub rgbm: bool,
+    /// Bits per channel of the PNG outputs.
+    #[arg(long, value_name = "BITS", default_value_t = 8, value_parser = parse_depth)]
+    pub depth: u8,
+    /// Multiply the PNG lightmaps by this (overrides the palette).
+    #[arg(long, value_name = "X")]
+    pub exposure: Option<f64>,
+    /// Worker threads (default: all cores).
+    #[arg(short, long, value_name = "N")]
+    pub jobs: Option<usize>,
+    /// Refuse images with more pixels than this (checked before decoding).
+    #[arg(long, value_name = "N", default_value_t = LoadLimits::default().max_pixels)]
+    pub max_pixels: u64,
+    /// Print only errors.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+fn parse_depth(s: &str) -> Result<u8, String> {
+    match s {
+        "8" => Ok(8),
+        "16" => Ok(16),
+        _ => Err(format!("the PNG depth is 8 or 16 bits, not {s}")),
+    }
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum KernelArg {
+    Flatland,
+    Paper,
+}
+
+#[derive(Args, Debug)]
+pub struct PaletteArgs {
+    /// Draw the palette as a labelled legend image.
+    #[arg(long, value_name = "FILE.png")]
+    pub legend: Option<PathBuf>,
+    /// Palette file to show instead of the built-in one.
+    #[arg(long, value_name = "FILE")]
+    pub palette: Option<PathBuf>,
+}
+
+/// Parses the process arguments and runs; the whole program.
+pub fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            let code = if e.use_stderr() { EXIT_USAGE } else { EXIT_OK };
+            let _ = e.print();
+            return ExitCode::from(code);
+        }
+    };
+    ExitCode::from(run(cli))
+}
+
+/// Runs a parsed command line; returns the exit status.
+pub fn run(cli: Cli) -> u8 {
+    match cli.command {
+        Command::Bake(args) => bake(&args),
+        Command::Palette(args) => palette(&args),
+        Command::Sweep(args) => sweep(&args),
+    }
+}
+
+fn sweep(a: &SweepArgs) -> u8 {
+    let tty = std::io::stderr().is_terminal();
+    let spinner = if tty {
+        ProgressBar::new_spinner()
+    } else {
+        ProgressBar::hidden()
+    };
+    spinner.enable_steady_tick(Duration::from_millis(120));
+    let result = with_jobs(a.jobs, || {
+        crate::sweep::run(&a.levels, &a.out, &|msg| {
+            spinner.set_message(msg.to_string())
+        })
+    });
+    spinner.finish_and_clear();
+    match result {
+        Ok(Ok(all)) => {
+            for (level, rows, check) in &all {
+                for r in rows {
+                    eprintln!(
+                        "{level:>14} {:>9}  patch {:>4}  {:>8.3} s  rel. RMS error {:>8.4}%  max {:.2e}",
+                        r.quality,
+                        r.knobs.patch_len,
+                        r.seconds,
+                        100.0 * r.rel_rmse,
+                        r.max_err
+                    );
+                }
+                eprintln!(
+                    "{level:>14} reference check: {:.4}% change when refined",
+                    100.0 * check
+                );
+            }
+            eprintln!(
+                "flatbake: wrote accuracy.csv, accuracy.md and accuracy.png to {}",
+                a.out.display()
+            );
+            EXIT_OK
+        }
+        Ok(Err(e)) | Err(e) => {
+            eprintln!("flatbake: {e}");
+            EXIT_FAILED
+        }
+    }
+}
+
+/// Checks flag values that clap cannot, and builds the library options.
+pub fn batch_options(a: &BakeArgs) -> Result<BatchOptions, String> {
+    if let Some(f) = a.falloff
+        && !(f.is_finite() && f > 0.0)
+    {
+        return Err(format!(
+            "--falloff must be a positive number of pixels, not {f}"
+        ));
+    }
+    if let Some(x) = a.exposure
+        && !(x.is_finite() && x > 0.0)
+    {
+        return Err(format!("--exposure must be a positive number, not {x}"));
+    }
+    if a.jobs == Some(0) {
+        return Err("--jobs must be at least 1".into());
+    }
+    Ok(BatchOptions {
+        out_dir: a.out.clone(),
+        quality: a.quality,
+        falloff: a.falloff,
+        kernel: match a.kernel {
+            KernelArg::Flatland => Kernel::Flatland,
+            KernelArg::Paper => Kernel::Paper,
+        },
+        gather: a.gather,
+        palette: a.palette.clone(),
+        bounces: a.bounces,
+        exposure: a.exposure,
+        hdr: a.hdr,
+        depth: if a.depth == 16 {
+            Depth::Sixteen
+        } else {
+            Depth::Eight
+        },
+        rgbm: a.rgbm,
+        limits: LoadLimits {
+            max_pixels: a.max_pixels,
+        },
+    })
+}
+
+/// Runs `f` on a thread pool of `jobs` threads (all cores when `None`).
+pub fn with_jobs<T: Send>(jobs: Option<usize>, f: impl FnOnce() -> T + Send) -> Result<T, String> {
+    let mut b = rayon::ThreadPoolBuilder::new();
+    if let Some(n) = jobs {
+        b = b.num_threads(n);
+    }
+    let pool = b
+        .build()
+        .map_err(|e| format!("cannot start worker threads: {e}"))?;
+    Ok(pool.install(f))
+}
+
+fn bake(a: &BakeArgs) -> u8 {
+    let opts = match batch_options(a) {
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("flatbake: {e}");
+            return EXIT_USAGE;
+        }
+    };
+    let ui = Progress::new(a.quiet, batch::collect_levels(&a.paths).len());
+    let outcomes = match with_jobs(a.jobs, || batch::run(&a.paths, &opts, &ui)) {
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("flatbake: {e}");
+            return EXIT_FAILED;
+        }
+    };
+    ui.finish();
+    let failed = outcomes
+        .iter()
+        .filter(|o| matches!(o, LevelOutcome::Failed { .. }))
+        .count();
+    if !a.quiet {
+        let baked = outcomes.len() - failed;
+        eprintln!(
+            "flatbake: {baked} level{} baked into {}, {failed} failed",
+            if baked == 1 { "" } else { "s" },
+            a.out.display()
+        );
+    }
+    if failed > 0 { EXIT_FAILED } else { EXIT_OK }
+}
+
+fn palette(a: &PaletteArgs) -> u8 {
+    let pal = match &a.palette {
+        Some(p) => match crate::palette::Palette::load(p) {
+            Ok(p) => p,
+            Err(e) => {
+                eprintln!("flatbake: {e}");
+                return EXIT_FAILED;
+            }
+        },
+        None => crate::palette::Palette::builtin(),
+    };
+    match &a.legend {
+        Some(path) => match crate::legend::legend_png(&pal) {
+            Ok(bytes) => match crate::output::write_atomic(path, &bytes) {
+                Ok(()) => {
+                    eprintln!("flatbake: wrote the palette legend to {}", path.display());
+                    EXIT_OK
+                }
+                Err(e) => {
+                    eprintln!("flatbake: cannot write {}: {e}", path.display());
+                    EXIT_FAILED
+                }
+            },
+            Err(e) => {
+                eprintln!("flatbake: cannot draw the legend: {e}");
+                EXIT_FAILED
+            }
+        },
+        None => {
+            print!("{}", describe(&pal));
+            EXIT_OK
+        }
+    }
+}
+
+/// The palette as a text table.
+fn describe(p: &crate::palette::Palette) -> String {
+    use std::fmt::Write;
+    let fmt3 = |v: [f64; 3]| {
+        if v[0] == v[1] && v[1] == v[2] {
+            format!("{}", v[0])
+        } else {
+            format!("[{}, {}, {}]", v[0], v[1], v[2])
+        }
+    };
+    let mut out = String::new();
+    let origin = match &p.origin {
+        crate::palette::PaletteOrigin::BuiltIn => "built-in palette".to_string(),
+        crate::palette::PaletteOrigin::File(f) => f.display().to_string(),
+    };
+    let _ = writeln!(out, "{origin}");
+    for m in &p.solids {
+        let _ = match m.kind {
+            crate::material::MaterialKind::Wall => writeln!(
+                out,
+                "  {}  wall     reflectance {}",
+                m.hex(),
+                fmt3(m.reflectance)
+            ),
+            crate::material::MaterialKind::Emitter => writeln!(
+                out,
+                "  {}  emitter  emission {}  reflectance {}",
+                m.hex(),
+                fmt3(m.emission),
+                fmt3(m.reflectance)
+            ),
+        };
+    }
+    for f in &p.floors {
+        let _ = writeln!(
+            out,
+            "  {}  floor    albedo {}",
+            crate::material::hex_color(f.color),
+            fmt3(f.albedo)
+        );
+    }
+    let _ = writeln!(
+        out,
+        "  any other colour: floor, albedo = the colour (sRGB-decoded)"
+    );
+    out
+}
+
+/// Progress on a terminal: one bar for the batch and a spinner per level
+/// being baked; finished levels print one line above the bars. Lines are
+/// printed whole, never interleaved, whatever the thread count.
+struct Progress {
+    quiet: bool,
+    multi: MultiProgress,
+    total: ProgressBar,
+    spinners: Mutex<Vec<(PathBuf, ProgressBar)>>,
+}
+
+impl Progress {
+    fn new(quiet: bool, levels: usize) -> Progress {
+        let draw = if quiet || !std::io::stderr().is_terminal() {
+            ProgressDrawTarget::hidden()
+        } else {
+            ProgressDrawTarget::stderr()
+        };
+        let multi = MultiProgress::with_draw_target(draw);
+        let total = multi.add(ProgressBar::new(levels as u64));
+        total.set_style(
+            ProgressStyle::with_template("{bar:30.cyan/blue} {pos}/{len} levels {elapsed}")
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        Progress {
+            quiet,
+            multi,
+            total,
+            spinners: Mutex::new(Vec::new()),
+        }
+    }
+
+    fn println(&self, line: String, error: bool) {
+        if self.multi.is_hidden() {
+            if error {
+                eprintln!("{line}");
+            } else if !self.quiet {
+                eprintln!("{line}");
+            }
+        } else {
+            let _ = self.multi.println(line);
+        }
+    }
+
+    fn finish(&self) {
+        self.total.finish_and_clear();
+    }
+}
+
+impl Observer for Progress {
+    fn level_started(&self, path: &Path) {
+        if self.multi.is_hidden() {
+            return;
+        }
+        let sp = self
+            .multi
+            .insert_before(&self.total, ProgressBar::new_spinner());
+        sp.set_style(
+            ProgressStyle::with_template("  {spinner} {msg} {elapsed}")
+                .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+        );
+        sp.set_message(format!("{}: loading", display_name(path)));
+        sp.enable_steady_tick(Duration::from_millis(120));
+        if let Ok(mut v) = self.spinners.lock() {
+            v.push((path.to_path_buf(), sp));
+        }
+    }
+
+    fn stage(&self, path: &Path, stage: &str) {
+        if let Ok(v) = self.spinners.lock()
+            && let Some((_, sp)) = v.iter().find(|(p, _)| p == path)
+        {
+            sp.set_message(format!("{}: {stage}", display_name(path)));
+        }
+    }
+
+    fn level_done(&self, outcome: &LevelOutcome) {
+        if let Ok(mut v) = self.spinners.lock()
+            && let Some(i) = v.iter().position(|(p, _)| p == outcome.path())
+        {
+            let (_, sp) = v.swap_remove(i);
+            sp.finish_and_clear();
+            self.multi.remove(&sp);
+        }
+        self.total.inc(1);
+        match outcome {
+            LevelOutcome::Baked { path, report } => self.println(
+                format!(
+                    "baked {} in {:.2} s ({}): {}",
+                    path.display(),
+                    report.timings.total,
+                    report.quality,
+                    report.summary()
+                ),
+                false,
+            ),
+            LevelOutcome::Failed { error, .. } => self.println(format!("error: {error}"), true),
+        }
+    }
+}
+
+fn display_name(p: &Path) -> String {
+    p.file_name().map_or_else(
+        || p.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    )
+}
