@@ -404,9 +404,7 @@ impl Progress {
 
     fn println(&self, line: String, error: bool) {
         if self.multi.is_hidden() {
-            if error {
-                eprintln!("{line}");
-            } else if !self.quiet {
+            if error || !self.quiet {
                 eprintln!("{line}");
             }
         } else {

@@ -10,6 +10,9 @@
 //! writes the results. [`bake`] runs the stages for one level and decides
 //! what a scene does not need.
 
+// Numeric kernels index several parallel arrays by channel or patch.
+#![allow(clippy::needless_range_loop)]
+
 pub mod bake;
 pub mod batch;
 pub mod cli;

@@ -395,7 +395,8 @@ impl Coverage {
         let mut i = self.iv.partition_point(|v| v.end <= a);
         while i < self.iv.len() && self.start(i) <= b {
             let v = &self.iv[i];
-            if v.owner == NONE || !(v.far < dmin) {
+            // NaN distances count as not hidden.
+            if v.owner == NONE || v.far >= dmin || v.far.is_nan() {
                 return false;
             }
             i += 1;

@@ -94,12 +94,8 @@ fn rows_sum_to_one_in_a_closed_room_and_reciprocity_holds() {
 fn lone_emitter_reads_its_subtended_angle() {
     let mut rows = vec![String::from("...................."); 15];
     // Block of emitter pixels at x in 8..12, y in 6..8.
-    for y in 6..8 {
-        let mut r: Vec<char> = rows[y].chars().collect();
-        for x in 8..12 {
-            r[x] = 'L';
-        }
-        rows[y] = r.into_iter().collect();
+    for row in &mut rows[6..8] {
+        row.replace_range(8..12, "LLLL");
     }
     let e = 3.0;
     let lvl = ascii(&refs(&rows), &[('L', light(e, 0.0))]);

@@ -167,7 +167,7 @@ proptest! {
 fn same_as_full_sweep(l: &Level) -> Result<(), TestCaseError> {
     {
         use flatbake::transport::for_each_visibility;
-        let g = trace(&l);
+        let g = trace(l);
         let all: Vec<u32> = (0..g.edges.len() as u32).collect();
         let mut pixels = Vec::new();
         let mut pos = Vec::new();
