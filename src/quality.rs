@@ -48,19 +48,19 @@ impl Quality {
                 patch_len: 8.0,
                 quad: 2,
                 tolerance: 1e-4,
-                reach_bound: 1e-3,
+                reach_bound: 1e-4,
             },
             Quality::Normal => Knobs {
                 patch_len: 4.0,
                 quad: 3,
                 tolerance: 1e-6,
-                reach_bound: 1e-4,
+                reach_bound: 1e-6,
             },
             Quality::High => Knobs {
                 patch_len: 2.0,
                 quad: 4,
                 tolerance: 1e-8,
-                reach_bound: 1e-5,
+                reach_bound: 1e-7,
             },
             Quality::Reference => Knobs {
                 patch_len: 0.5,

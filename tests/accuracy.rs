@@ -1,0 +1,208 @@
+//! The price of accuracy, pinned: on varied small levels the error against
+//! the `reference` preset falls from draft to normal to high, `normal` stays
+//! within 2% relative RMS error, `high` within 0.5%, and `reference` itself is
+//! converged (refining it changes the result by less than 0.05%).
+
+mod common;
+use common::*;
+
+use flatbake::bake::{Settings, bake};
+use flatbake::level::Level;
+use flatbake::material::Material;
+use flatbake::quality::{Knobs, Quality};
+use flatbake::sweep::{REFERENCE_TOLERANCE, compare};
+
+/// A level from a per-pixel rule: `Some(k)` is material `k`, `None` floor.
+fn level_from(
+    w: usize,
+    h: usize,
+    mats: &[Material],
+    f: impl Fn(usize, usize) -> Option<usize>,
+) -> Level {
+    const KEYS: &[char] = &['#', 'L', 'R', 'G'];
+    let rows: Vec<String> = (0..h)
+        .map(|y| (0..w).map(|x| f(x, y).map_or('.', |k| KEYS[k])).collect())
+        .collect();
+    let legend: Vec<(char, Material)> = mats
+        .iter()
+        .cloned()
+        .enumerate()
+        .map(|(i, m)| (KEYS[i], m))
+        .collect();
+    ascii(&refs(&rows), &legend)
+}
+
+/// A closed room of near-mirror walls (r = 0.98) lit by one emitter pixel,
+/// with a block casting a shadow.
+fn mirror_room() -> Level {
+    level_from(40, 30, &[wall(0.98), light(1.0, 0.0)], |x, y| {
+        if x == 0 && y == 15 {
+            Some(1)
+        } else if x == 0
+            || y == 0
+            || x == 39
+            || y == 29
+            || ((10..14).contains(&x) && (10..20).contains(&y))
+        {
+            Some(0)
+        } else {
+            None
+        }
+    })
+}
+
+/// A maze of one-pixel walls with single-pixel lights set into them, open
+/// to the outside at two gaps.
+fn maze() -> Level {
+    level_from(64, 64, &[wall(0.6), light(6.0, 0.0)], |x, y| {
+        let border = x == 0 || y == 0 || x == 63 || y == 63;
+        if border {
+            return if (x == 0 && y == 31) || (x == 63 && y == 40) {
+                None
+            } else {
+                Some(0)
+            };
+        }
+        if x % 9 == 0 && (y / 9 + x / 9) % 3 != 0 && y % 9 != 4 {
+            return Some(if y % 17 == 3 { 1 } else { 0 });
+        }
+        if y % 9 == 0 && (x / 9 * 7 + y / 9) % 4 != 0 && x % 9 != 5 {
+            return Some(0);
+        }
+        None
+    })
+}
+
+/// An open field with pillars of several sizes and two small lights; light
+/// escapes through the image border.
+fn field() -> Level {
+    let red = Material {
+        reflectance: [0.8, 0.1, 0.1],
+        ..wall(0.0)
+    };
+    level_from(80, 60, &[wall(0.5), light(12.0, 0.0), red], |x, y| {
+        if y == 10 && (10..12).contains(&x) || y == 45 && (60..62).contains(&x) {
+            return Some(1);
+        }
+        let pillars = [
+            (20, 20, 3, 3, 0),
+            (40, 30, 1, 1, 0),
+            (50, 12, 6, 2, 2),
+            (30, 45, 2, 8, 0),
+            (65, 25, 1, 6, 2),
+        ];
+        pillars
+            .iter()
+            .find(|&&(a, b, w, h, _)| x >= a && x < a + w && y >= b && y < b + h)
+            .map(|p| p.4)
+    })
+}
+
+/// A hall with lamps in both long walls and columns between them, baked
+/// with falloff.
+fn falloff_hall() -> Level {
+    level_from(96, 32, &[wall(0.7), light(4.0, 0.2)], |x, y| {
+        if y == 0 || y == 31 || x == 0 || x == 95 {
+            return Some(if (y == 0 || y == 31) && x % 24 == 12 {
+                1
+            } else {
+                0
+            });
+        }
+        if (y == 10 || y == 21) && x % 24 == 0 && x > 0 {
+            return Some(0);
+        }
+        None
+    })
+}
+
+fn bake_knobs(level: &Level, q: Quality, knobs: Knobs, falloff: Option<f64>) -> Vec<[f32; 3]> {
+    let mut s = Settings::new(q);
+    s.knobs = knobs;
+    s.falloff = falloff;
+    bake(level, &s, &|_| {}).expect("bakes").lightmap.rgb
+}
+
+fn check_ladder(name: &str, level: &Level, falloff: Option<f64>) {
+    let reference = bake_knobs(
+        level,
+        Quality::Reference,
+        Quality::Reference.knobs(),
+        falloff,
+    );
+    let err = |q: Quality| compare(level, &bake_knobs(level, q, q.knobs(), falloff), &reference).0;
+    let (d, n, h) = (
+        err(Quality::Draft),
+        err(Quality::Normal),
+        err(Quality::High),
+    );
+    eprintln!(
+        "{name}: draft {:.3}%  normal {:.3}%  high {:.4}%",
+        100.0 * d,
+        100.0 * n,
+        100.0 * h
+    );
+    assert!(
+        n < 0.02,
+        "{name}: normal is {:.3}% from reference",
+        100.0 * n
+    );
+    assert!(
+        h < 0.005,
+        "{name}: high is {:.3}% from reference",
+        100.0 * h
+    );
+    assert!(
+        d > n && n > h,
+        "{name}: error must fall draft {d:.2e} > normal {n:.2e} > high {h:.2e}"
+    );
+}
+
+#[test]
+fn mirror_room_error_falls_with_quality() {
+    check_ladder("mirror room r=0.98", &mirror_room(), None);
+}
+
+#[test]
+fn one_pixel_maze_error_falls_with_quality() {
+    check_ladder("one-pixel maze", &maze(), None);
+}
+
+#[test]
+fn open_field_error_falls_with_quality() {
+    check_ladder("open field", &field(), None);
+}
+
+#[test]
+fn falloff_hall_error_falls_with_quality() {
+    check_ladder("falloff hall", &falloff_hall(), Some(12.0));
+}
+
+/// `reference` is converged: halving its patch length (and keeping the
+/// largest quadrature) changes the lightmap by less than 0.05%.
+#[test]
+fn reference_is_converged() {
+    for (name, level, falloff) in [
+        ("mirror room", mirror_room(), None),
+        ("maze", maze(), None),
+        ("falloff hall", falloff_hall(), Some(12.0)),
+    ] {
+        let r = Quality::Reference.knobs();
+        let finer = Knobs {
+            patch_len: r.patch_len / 2.0,
+            ..r
+        };
+        let a = bake_knobs(&level, Quality::Reference, r, falloff);
+        let b = bake_knobs(&level, Quality::Reference, finer, falloff);
+        let (change, _) = compare(&level, &a, &b);
+        eprintln!(
+            "{name}: reference refined changes by {:.4}%",
+            100.0 * change
+        );
+        assert!(
+            change < REFERENCE_TOLERANCE,
+            "{name}: reference changes by {:.4}% when refined",
+            100.0 * change
+        );
+    }
+}
