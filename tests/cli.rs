@@ -1,0 +1,188 @@
+//! The command line as a user meets it: baking a folder, what lands in the
+//! output folder, the report's fields (SPEC section 5), the palette legend,
+//! the batch going on past a bad level, and the documented exit codes.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn flatbake(args: &[&str], cwd: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_flatbake"))
+        .args(args)
+        .current_dir(cwd)
+        .output()
+        .expect("flatbake runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Writes a small closed room with a light strip and its palette.
+fn write_room(dir: &Path, name: &str) {
+    let (w, h) = (24u32, 16u32);
+    let img = image::RgbaImage::from_fn(w, h, |x, y| {
+        if y == 0 && (8..14).contains(&x) {
+            image::Rgba([255, 250, 220, 255])
+        } else if x == 0 || y == 0 || x == w - 1 || y == h - 1 || (x == 12 && y > 6) {
+            image::Rgba([90, 90, 90, 255])
+        } else {
+            image::Rgba([180, 170, 150, 255])
+        }
+    });
+    img.save(dir.join(format!("{name}.png")))
+        .expect("write level");
+    std::fs::write(
+        dir.join(format!("{name}.palette.toml")),
+        "[[wall]]\ncolor = \"#5a5a5a\"\nreflectance = 0.6\n\n[[emitter]]\ncolor = \"#fffadc\"\nemission = [2.0, 1.8, 1.5]\n",
+    )
+    .expect("write palette");
+}
+
+#[test]
+fn baking_a_folder_writes_every_output_and_a_complete_report() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let levels = dir.path().join("levels");
+    std::fs::create_dir(&levels).expect("mkdir");
+    write_room(&levels, "a");
+    write_room(&levels, "b");
+    let o = flatbake(&["bake", "levels", "-o", "out", "--hdr"], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    for name in ["a", "b"] {
+        for suffix in ["lightmap.png", "lit.png", "lightmap.exr", "report.json"] {
+            let p = dir.path().join("out").join(format!("{name}.{suffix}"));
+            assert!(p.exists(), "{} was not written", p.display());
+        }
+        let text = std::fs::read_to_string(dir.path().join(format!("out/{name}.report.json")))
+            .expect("report");
+        let r: serde_json::Value = serde_json::from_str(&text).expect("report is JSON");
+        assert_eq!(r["level"], name);
+        assert_eq!(r["size"], serde_json::json!([24, 16]));
+        assert_eq!(r["quality"], "normal");
+        assert_eq!(r["kernel"], "flatland");
+        assert!(r["falloff"].is_null());
+        for k in ["edges", "patches", "floor_pixels"] {
+            assert!(r["counts"][k].as_u64().is_some_and(|n| n > 0), "counts.{k}");
+        }
+        for k in [
+            "load",
+            "geometry",
+            "form_factors",
+            "solve",
+            "gather",
+            "write",
+            "total",
+        ] {
+            assert!(
+                r["timings"][k].as_f64().is_some_and(|t| t >= 0.0),
+                "timings.{k}"
+            );
+        }
+        // Coloured emission: three channel solves.
+        assert_eq!(r["solves"], 3);
+        let e = &r["energy"];
+        let (em, ab, es) = (
+            e["emitted"].as_f64().unwrap(),
+            e["absorbed"].as_f64().unwrap(),
+            e["escaped"].as_f64().unwrap(),
+        );
+        assert!(
+            em > 0.0 && ((ab + es) / em - 1.0).abs() < 1e-4,
+            "energy {em} vs {ab} + {es}"
+        );
+        assert!(r["skipped"].is_array() && r["warnings"].is_array());
+    }
+    // Not quiet: one line per level with its summary.
+    let err = stderr(&o);
+    assert!(
+        err.contains("baked levels/a.png") && err.contains("3 solves"),
+        "{err}"
+    );
+}
+
+#[test]
+fn one_bad_level_does_not_stop_the_batch_and_fails_the_exit_status() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    write_room(dir.path(), "good");
+    std::fs::write(dir.path().join("broken.png"), b"not a png at all").expect("write");
+    let o = flatbake(&["bake", ".", "-o", "out", "--quiet"], dir.path());
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(dir.path().join("out/good.lightmap.png").exists());
+    assert!(!dir.path().join("out/broken.lightmap.png").exists());
+    let err = stderr(&o);
+    assert!(err.contains("broken.png"), "the bad level is named: {err}");
+    assert!(
+        !err.contains("good.png"),
+        "--quiet prints only errors: {err}"
+    );
+}
+
+#[test]
+fn quiet_success_prints_nothing_and_exits_zero() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    write_room(dir.path(), "room");
+    let o = flatbake(&["bake", "room.png", "-o", "out", "--quiet"], dir.path());
+    assert_eq!(o.status.code(), Some(0));
+    assert!(o.stderr.is_empty() && o.stdout.is_empty(), "{}", stderr(&o));
+}
+
+#[test]
+fn bad_flags_exit_with_status_two() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    write_room(dir.path(), "room");
+    for args in [
+        &["bake", "room.png", "--quality", "ultra"][..],
+        &["bake", "room.png", "--falloff", "-3"],
+        &["bake", "room.png", "--exposure", "0"],
+        &["bake", "room.png", "--jobs", "0"],
+        &["bake", "room.png", "--depth", "12"],
+    ] {
+        let o = flatbake(args, dir.path());
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(!stderr(&o).is_empty(), "{args:?} says why");
+    }
+}
+
+#[test]
+fn palette_legend_is_drawn_by_flatbake() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let o = flatbake(&["palette", "--legend", "legend.png"], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let img = image::open(dir.path().join("legend.png"))
+        .expect("legend is an image")
+        .to_rgba8();
+    assert!(img.width() > 100 && img.height() > 50);
+    // Not blank: several distinct colours (swatches and text).
+    let mut colours: Vec<[u8; 4]> = img.pixels().map(|p| p.0).collect();
+    colours.sort_unstable();
+    colours.dedup();
+    assert!(colours.len() > 8, "legend has {} colours", colours.len());
+    // Without --legend it prints the palette as text.
+    let o = flatbake(&["palette"], dir.path());
+    assert!(o.status.success());
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("wall") && text.contains("emitter") && text.contains("floor"),
+        "{text}"
+    );
+}
+
+#[test]
+fn output_does_not_depend_on_the_thread_count() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    write_room(dir.path(), "room");
+    for jobs in ["1", "2"] {
+        let out = format!("out{jobs}");
+        let o = flatbake(
+            &[
+                "bake", "room.png", "-o", &out, "--hdr", "--quiet", "--jobs", jobs,
+            ],
+            dir.path(),
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    for f in ["room.lightmap.png", "room.lit.png", "room.lightmap.exr"] {
+        let a = std::fs::read(dir.path().join("out1").join(f)).expect("read");
+        let b = std::fs::read(dir.path().join("out2").join(f)).expect("read");
+        assert!(a == b, "{f} differs between --jobs 1 and --jobs 2");
+    }
+}
