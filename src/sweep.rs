@@ -211,6 +211,37 @@ pub fn markdown(all: &[(String, Vec<Row>, f64)]) -> String {
     let mut s = String::from(
         "# The price of accuracy\n\nError against the `reference` preset over floor pixels (all channels); time is the whole bake of the level on this machine.\n\n",
     );
+    // One summary row per level: error and time of each preset.
+    let _ = writeln!(
+        s,
+        "| level | draft | normal | high | reference | reference check |\n|---|---:|---:|---:|---:|---:|"
+    );
+    for (level, rows, check) in all {
+        let cell = |q: Quality| {
+            rows.iter()
+                .find(|r| r.quality == q.name())
+                .map_or_else(String::new, |r| {
+                    if q == Quality::Reference {
+                        format!("{:.2} s", r.seconds)
+                    } else {
+                        format!("{:.3}% in {:.2} s", 100.0 * r.rel_rmse, r.seconds)
+                    }
+                })
+        };
+        let _ = writeln!(
+            s,
+            "| {level} | {} | {} | {} | {} | {:.4}% |",
+            cell(Quality::Draft),
+            cell(Quality::Normal),
+            cell(Quality::High),
+            cell(Quality::Reference),
+            100.0 * check
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\nCells: relative RMS error against `reference` and the whole bake time. Reference check: the change when `reference` is refined (halved patch length, doubled quadrature).\n"
+    );
     for (level, rows, check) in all {
         let _ = writeln!(s, "## {level}\n");
         let _ = writeln!(

@@ -186,3 +186,40 @@ fn output_does_not_depend_on_the_thread_count() {
         assert!(a == b, "{f} differs between --jobs 1 and --jobs 2");
     }
 }
+
+#[test]
+fn sweep_writes_the_csv_the_table_and_the_plot() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    write_room(dir.path(), "room");
+    let o = flatbake(&["sweep", "room.png", "-o", "sweep"], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let csv = std::fs::read_to_string(dir.path().join("sweep/accuracy.csv")).expect("csv");
+    let mut lines = csv.lines();
+    assert!(
+        lines
+            .next()
+            .expect("header")
+            .starts_with("level,quality,seconds,rel_rmse,max_err")
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    for q in ["draft", "normal", "high", "reference"] {
+        assert!(
+            rows.iter().any(|r| r[0] == "room" && r[1] == q),
+            "no {q} row in\n{csv}"
+        );
+    }
+    let err = |q: &str| -> f64 {
+        rows.iter().find(|r| r[1] == q).expect("row")[3]
+            .parse()
+            .expect("number")
+    };
+    assert_eq!(err("reference"), 0.0);
+    assert!(
+        err("draft") >= err("normal") && err("normal") >= err("high"),
+        "{csv}"
+    );
+    let md = std::fs::read_to_string(dir.path().join("sweep/accuracy.md")).expect("md");
+    assert!(md.contains("| room |") && md.contains("## room"), "{md}");
+    let png = image::open(dir.path().join("sweep/accuracy.png")).expect("plot is an image");
+    assert!(png.width() >= 640 && png.height() >= 400);
+}
