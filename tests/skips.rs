@@ -1,0 +1,241 @@
+//! Simulating only what a scene calls for (issue 6): every skip is checked
+//! against the full computation (`Settings::exhaustive`), identical where the
+//! skip is exact and within its documented bound where it is bounded, and
+//! the report says what was skipped.
+
+mod common;
+use common::*;
+
+use flatbake::bake::{Baked, Settings, bake};
+use flatbake::level::{Cell, Level};
+use flatbake::material::Material;
+use flatbake::quality::Quality;
+
+fn run(level: &Level, q: Quality, falloff: Option<f64>, exhaustive: bool) -> Baked {
+    let mut s = Settings::new(q);
+    s.falloff = falloff;
+    s.exhaustive = exhaustive;
+    bake(level, &s, &|_| {}).expect("bakes")
+}
+
+fn skipped(b: &Baked, effect: &str) -> bool {
+    b.report.skipped.iter().any(|s| s.effect.contains(effect))
+}
+
+/// Largest absolute difference over all pixels and channels.
+fn max_diff(a: &Baked, b: &Baked) -> f64 {
+    a.lightmap
+        .rgb
+        .iter()
+        .zip(&b.lightmap.rgb)
+        .flat_map(|(p, q)| (0..3).map(move |c| (p[c] as f64 - q[c] as f64).abs()))
+        .fold(0.0, f64::max)
+}
+
+/// A room with a block, a light strip in the top wall, and the given materials.
+fn room(wall_m: Material, light_m: Material) -> Level {
+    let rows = [
+        "##########LLLL##########",
+        "#......................#",
+        "#......................#",
+        "#.......###............#",
+        "#.......###............#",
+        "#......................#",
+        "#..............#.......#",
+        "#..............#.......#",
+        "#......................#",
+        "########################",
+    ];
+    ascii(&rows, &[('#', wall_m), ('L', light_m)])
+}
+
+fn coloured(r: [f64; 3]) -> Material {
+    Material {
+        reflectance: r,
+        ..wall(0.0)
+    }
+}
+
+fn emitter(e: [f64; 3]) -> Material {
+    Material {
+        emission: e,
+        ..light(0.0, 0.0)
+    }
+}
+
+#[test]
+fn grey_scene_is_solved_once_and_matches_three_solves() {
+    let level = room(wall(0.6), light(2.0, 0.3));
+    for q in [Quality::Draft, Quality::Normal] {
+        let fast = run(&level, q, None, false);
+        let full = run(&level, q, None, true);
+        assert_eq!(fast.report.solves, 1, "{q}");
+        assert_eq!(full.report.solves, 3, "{q}");
+        assert!(skipped(&fast, "channel"), "{:?}", fast.report.skipped);
+        assert!(full.report.skipped.is_empty(), "{:?}", full.report.skipped);
+        assert_eq!(max_diff(&fast, &full), 0.0, "{q}: sharing a solve is exact");
+    }
+}
+
+#[test]
+fn coloured_scene_takes_three_solves() {
+    let level = room(coloured([0.7, 0.2, 0.1]), light(2.0, 0.0));
+    let b = run(&level, Quality::Normal, None, false);
+    assert_eq!(b.report.solves, 3);
+    assert_eq!(max_diff(&b, &run(&level, Quality::Normal, None, true)), 0.0);
+}
+
+#[test]
+fn channel_without_emission_is_not_solved() {
+    // Yellow light: red and green share one solve, blue is dark.
+    let level = room(wall(0.5), emitter([2.0, 2.0, 0.0]));
+    let b = run(&level, Quality::Normal, None, false);
+    assert_eq!(b.report.solves, 1);
+    assert!(skipped(&b, "blue"), "{:?}", b.report.skipped);
+    assert!(b.lightmap.rgb.iter().all(|p| p[2] == 0.0));
+    assert_eq!(max_diff(&b, &run(&level, Quality::Normal, None, true)), 0.0);
+}
+
+#[test]
+fn no_reflecting_wall_means_no_bounce_solve() {
+    let level = room(wall(0.0), emitter([1.0, 0.5, 0.2]));
+    let b = run(&level, Quality::Normal, None, false);
+    assert_eq!(b.report.solves, 0);
+    assert_eq!(b.report.counts.form_factor_entries, 0, "no F is built");
+    assert!(
+        b.report
+            .skipped
+            .iter()
+            .any(|s| s.effect == "bounce" && s.reason.contains("no wall reflects")),
+        "{:?}",
+        b.report.skipped
+    );
+    let full = run(&level, Quality::Normal, None, true);
+    assert_eq!(full.report.solves, 3);
+    assert!(
+        max_diff(&b, &full) <= 1e-6 * 1.0,
+        "radiosity is the emission: {}",
+        max_diff(&b, &full)
+    );
+}
+
+#[test]
+fn reflecting_walls_that_see_no_emitter_mean_no_bounce_solve() {
+    // Left room: black walls and a light. Right room: white walls, no light.
+    let rows = [
+        "BBBBBBBBB#########",
+        "B.......B#.......#",
+        "B.......B#.......#",
+        "LLL.....B#.......#",
+        "B.......B#.......#",
+        "BBBBBBBBB#########",
+    ];
+    let level = ascii(
+        &rows,
+        &[('B', wall(0.0)), ('#', wall(0.8)), ('L', light(3.0, 0.0))],
+    );
+    let b = run(&level, Quality::Normal, None, false);
+    assert_eq!(b.report.solves, 0, "{:?}", b.report.skipped);
+    assert!(skipped(&b, "bounce"));
+    let full = run(&level, Quality::Normal, None, true);
+    assert!(max_diff(&b, &full) <= 1e-6, "{}", max_diff(&b, &full));
+    // The right room is not lit, and not gathered.
+    assert!(
+        b.report.counts.unreached_pixels >= 7 * 4,
+        "{:?}",
+        b.report.counts
+    );
+}
+
+#[test]
+fn unreached_regions_are_zero_and_counted() {
+    // A sealed dark room beside a lit one: identical to gathering it.
+    let rows = [
+        "##########LL#######",
+        "#.........#.......#",
+        "#.........#.......#",
+        "#.........#.......#",
+        "###################",
+    ];
+    let level = ascii(&rows, &[('#', wall(0.5)), ('L', light(2.0, 0.0))]);
+    let b = run(&level, Quality::Normal, None, false);
+    let full = run(&level, Quality::Normal, None, true);
+    assert_eq!(max_diff(&b, &full), 0.0);
+    assert_eq!(b.report.counts.unreached_pixels, 3 * 7);
+    assert!(skipped(&b, "gather"), "{:?}", b.report.skipped);
+    for y in 1..4 {
+        for x in 11..18 {
+            assert_eq!(b.lightmap.rgb[y * level.width + x], [0.0; 3]);
+        }
+    }
+}
+
+#[test]
+fn a_level_without_emitters_is_black_at_once() {
+    let level = ascii(&refs(&common::room(12, 8)), &[('#', wall(0.7))]);
+    let b = run(&level, Quality::Normal, None, false);
+    assert_eq!(b.report.solves, 0);
+    assert_eq!(b.report.counts.form_factor_entries, 0);
+    assert!(b.lightmap.rgb.iter().all(|p| *p == [0.0; 3]));
+    assert!(
+        b.report.warnings.iter().any(|w| w.contains("no emitter")),
+        "{:?}",
+        b.report.warnings
+    );
+}
+
+/// With falloff, each skipped edge-pixel pair would have contributed less
+/// than `reach_bound` times the brightest emission, so (direct light only)
+/// the summed error over all pixels is at most `culled pairs * bound`.
+#[test]
+fn falloff_reach_skip_stays_within_its_bound() {
+    let mut rows: Vec<String> = common::room(120, 24);
+    for x in [10usize, 50, 90] {
+        rows[0].replace_range(x..x + 2, "LL");
+    }
+    let level = ascii(&refs(&rows), &[('#', wall(0.0)), ('L', light(5.0, 0.0))]);
+    for q in [Quality::Draft, Quality::Normal, Quality::High] {
+        let b = run(&level, q, Some(3.0), false);
+        let full = run(&level, q, Some(3.0), true);
+        let pairs = b.report.counts.culled_pairs;
+        assert!(pairs > 0, "{q}: the far pixels are culled");
+        assert!(skipped(&b, "falloff reach"), "{:?}", b.report.skipped);
+        let bound = q.knobs().reach_bound * 5.0;
+        let total: f64 = level
+            .cells
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| **c == Cell::Floor)
+            .map(|(i, _)| (b.lightmap.rgb[i][0] as f64 - full.lightmap.rgb[i][0] as f64).abs())
+            .sum();
+        assert!(
+            total <= pairs as f64 * bound * (1.0 + 1e-6) + 1e-5,
+            "{q}: summed error {total:.3e} over {pairs} culled pairs x {bound:.1e}"
+        );
+        assert_eq!(full.report.counts.culled_pairs, 0);
+    }
+}
+
+/// `bounces = N` truncates the series: a closed room of emission e and
+/// reflectance r reads e (1 - r^(N+1)) / (1 - r).
+#[test]
+fn bounces_truncate_the_series_exactly() {
+    let (e, r) = (0.8, 0.6);
+    let level = ascii(&refs(&common::room(11, 9)), &[('#', light(e, r))]);
+    for n in [0u32, 1, 2, 5] {
+        let mut s = Settings::new(Quality::Normal);
+        s.bounces = Some(n);
+        let b = bake(&level, &s, &|_| {}).expect("bakes");
+        let want = e * (1.0 - r.powi(n as i32 + 1)) / (1.0 - r);
+        for (i, c) in level.cells.iter().enumerate() {
+            if *c == Cell::Floor {
+                let v = b.lightmap.rgb[i][0] as f64;
+                assert!((v / want - 1.0).abs() < 1e-5, "bounces {n}: {v} vs {want}");
+            }
+        }
+        if n == 0 {
+            assert_eq!(b.report.solves, 0);
+            assert!(skipped(&b, "bounce"));
+        }
+    }
+}
