@@ -725,6 +725,27 @@ fn falloff_0_1_and_1e6_pixels() {
     );
 }
 
+/// Regression: a falloff distance whose square overflows (above about
+/// 1.3e154 pixels, accepted by `--falloff` and the palette as a finite
+/// number) made every weight `inf / inf` = NaN, and the whole lightmap was
+/// clamped to black. It must act as no falloff.
+#[test]
+fn falloff_beyond_1e154_pixels_is_no_falloff_not_nan() {
+    let lvl = scene_for_scaling(1.0);
+    let none = bake_checked(&lvl, &settings(Quality::Normal), 1e-6);
+    for f in [1e154, 1e200, 1e300, f64::MAX, f64::INFINITY] {
+        let mut s = settings(Quality::Normal);
+        s.falloff = Some(f);
+        let b = bake_checked(&lvl, &s, 1e-6);
+        for (p, q) in b.lightmap.rgb.iter().zip(&none.lightmap.rgb) {
+            assert!(
+                (p[0] - q[0]).abs() <= 1e-6 * q[0].max(1e-3),
+                "falloff {f:e}: {p:?} vs {q:?}"
+            );
+        }
+    }
+}
+
 // ---------------------------------------------------------------------------
 // The paper's kernel
 
