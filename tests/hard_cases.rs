@@ -746,6 +746,21 @@ fn falloff_beyond_1e154_pixels_is_no_falloff_not_nan() {
     }
 }
 
+/// Regression: light above the f32 range (emission 1e39 from code, or a
+/// huge amplification) became +inf in the lightmap and was then "clamped"
+/// to black. It saturates at the largest f32 instead.
+#[test]
+fn light_beyond_the_f32_range_saturates_instead_of_going_black() {
+    let rows = room(9, 7);
+    let lvl = ascii(&refs(&rows), &[('#', light(1e39, 0.5))]);
+    let b = bake_checked(&lvl, &settings(Quality::Normal), 1e-6);
+    for (x, y, v) in floor_values(&lvl, &b) {
+        assert_eq!(v, f32::MAX as f64, "({x},{y})");
+    }
+    // Solid pixels (the emitters' mean radiosity) saturate too.
+    assert_eq!(b.lightmap.rgb[1][0], f32::MAX);
+}
+
 // ---------------------------------------------------------------------------
 // The paper's kernel
 
