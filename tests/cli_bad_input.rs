@@ -297,6 +297,12 @@ fn palette_errors_name_file_and_line() {
             &["emission inf is not a finite number"],
         ),
         (
+            "emission_too_large",
+            "[[emitter]]\ncolor = \"#fff\"\nemission = [1, 1e39, 1]\n",
+            3,
+            &["emission 1e39 is too large", "at most 1e15"],
+        ),
+        (
             "duplicate",
             "[[wall]]\ncolor = \"#808080\"\nreflectance = 0.5\n\n[[emitter]]\ncolor = [128, 128, 128]\nemission = 1\n",
             6,
