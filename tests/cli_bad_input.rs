@@ -644,3 +644,44 @@ fn bad_flag_values_are_usage_errors() {
         assert_says(&o, &[words]);
     }
 }
+
+/// Regression: two levels with the same name in one batch (`a/room.png`
+/// and `b/room.png`) both wrote `out/room.*`, and the later silently
+/// replaced the earlier. The first is baked, the second refused by name.
+#[test]
+fn same_level_name_twice_in_a_batch_is_refused_not_overwritten() {
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+    std::fs::create_dir_all(&a).unwrap();
+    std::fs::create_dir_all(&b).unwrap();
+    let first = paint(&a, "room", ROOM, Some(PALETTE));
+    let second = paint(&b, "room", &["####", "#L.#", "####"], Some(PALETTE));
+    let out = dir.path().join("out");
+    let o = flatbake(&[&"bake", &first, &second, &first, &"-o", &out]);
+    assert_exit(&o, EXIT_FAILED);
+    assert_says(&o, &["2 levels baked", "1 failed"]);
+    let e = stderr(&o);
+    let line = e
+        .lines()
+        .find(|l| l.starts_with("error: "))
+        .unwrap_or_else(|| panic!("{e}"));
+    let second_s = second.display().to_string();
+    let first_s = first.display().to_string();
+    assert!(line.contains(&second_s), "{line}");
+    assert!(line.contains(&first_s), "{line}");
+    assert!(line.contains("would overwrite"), "{line}");
+    // The outputs are the first level's (10 x 5), not the second's (4 x 3).
+    let lm = image::open(out.join("room.lightmap.png")).unwrap();
+    assert_eq!((lm.width(), lm.height()), (10, 5));
+}
+
+#[test]
+fn a_folder_without_levels_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let empty = dir.path().join("empty");
+    std::fs::create_dir(&empty).unwrap();
+    std::fs::write(empty.join("notes.txt"), "no levels here").unwrap();
+    let o = flatbake(&[&"bake", &empty, &"-o", &dir.path().join("out")]);
+    assert_exit(&o, EXIT_FAILED);
+    assert_says(&o, &["empty", "holds no level images"]);
+}
