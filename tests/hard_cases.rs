@@ -791,6 +791,26 @@ fn paper_kernel_on_a_near_mirror_closed_room_is_finite_with_a_warning() {
     }
 }
 
+/// Regression: rows of rho F just below 1 (say 0.99999) were not rescaled;
+/// above 2500 patches the paper kernel's Jacobi iteration then stopped at
+/// its sweep limit far from the answer (about 63% of it), and below 2500 the
+/// direct solve gave a different answer for the same rows. Every row is now
+/// capped at MAX_ROW, and both paths agree on the capped system.
+#[test]
+fn paper_rows_just_below_1_converge_on_large_systems() {
+    let max_row = flatbake::paper::MAX_ROW;
+    for n in [100, 3000] {
+        let rows: Vec<Vec<(u32, f64)>> = (0..n).map(|i| vec![(i as u32, 1.0)]).collect();
+        let rho = vec![0.99999; n];
+        let e = vec![1.0; n];
+        let (b, _) = flatbake::paper::solve(&rows, &rho, &e, 1e-10);
+        let want = 1.0 / (1.0 - max_row);
+        for v in &b {
+            assert!((v / want - 1.0).abs() < 1e-6, "n={n}: {v} vs {want}");
+        }
+    }
+}
+
 // ---------------------------------------------------------------------------
 // Random levels
 
