@@ -453,9 +453,9 @@ fn checkerboard_cells_match_the_unit_square_closed_form() {
 fn diagonal_one_pixel_walls() {
     let n = 14;
     let mut rows = room(n, n);
-    for i in 1..n - 1 {
+    for (i, row) in rows.iter_mut().enumerate().take(n - 1).skip(1) {
         let x = n - 1 - i;
-        rows[i].replace_range(x..x + 1, "D");
+        row.replace_range(x..x + 1, "D");
     }
     rows[3].replace_range(3..4, "L");
     let lvl = ascii(
