@@ -472,7 +472,7 @@ pub fn bake(
         let px = &mut rgb[p[1] as usize * level.width + p[0] as usize];
         for c in 0..3 {
             if let Some(k) = plan.class_of[c] {
-                px[c] = values[i * kk + k] as f32;
+                px[c] = light_f32(values[i * kk + k]);
             }
         }
     }
@@ -603,6 +603,17 @@ fn unbounded_message(g: &Geometry, patches: &Patches, ps: &[usize], channel: &st
     )
 }
 
+/// Light as stored in the lightmap: values beyond the f32 range saturate at
+/// the largest f32 instead of becoming infinite (which the final check would
+/// clamp to black); NaN stays NaN so that the check still catches it.
+fn light_f32(v: f64) -> f32 {
+    if v > f32::MAX as f64 {
+        f32::MAX
+    } else {
+        v as f32
+    }
+}
+
 /// Fills solid pixels with the mean radiosity of their exposed sides.
 fn solid_pixels(
     level: &Level,
@@ -647,7 +658,7 @@ fn solid_pixels(
     }
     for (i, cell) in level.cells.iter().enumerate() {
         if matches!(cell, Cell::Solid(_)) && count[i] > 0 {
-            rgb[i] = [0, 1, 2].map(|c| (sum[i][c] / count[i] as f64) as f32);
+            rgb[i] = [0, 1, 2].map(|c| light_f32(sum[i][c] / count[i] as f64));
         }
     }
 }

@@ -135,11 +135,22 @@ fn is_level_file(p: &Path) -> bool {
 /// Bakes every level; returns the outcomes in input order.
 pub fn run(paths: &[PathBuf], opts: &BatchOptions, observer: &dyn Observer) -> Vec<LevelOutcome> {
     let levels = collect_levels(paths);
+    let clashes = output_clashes(&levels);
     levels
         .par_iter()
-        .map(|path| {
+        .zip(&clashes)
+        .map(|(path, clash)| {
             observer.level_started(path);
-            let outcome = match bake_one(path, opts, observer) {
+            let result = match clash {
+                Some(first) => Err(format!(
+                    "{}: not baked: its outputs would overwrite those of {} (both are named {:?}); rename one or bake them into different output folders",
+                    path.display(),
+                    first.display(),
+                    level_stem(path)
+                )),
+                None => bake_one(path, opts, observer),
+            };
+            let outcome = match result {
                 Ok(report) => LevelOutcome::Baked {
                     path: path.clone(),
                     report: Box::new(report),
@@ -151,6 +162,28 @@ pub fn run(paths: &[PathBuf], opts: &BatchOptions, observer: &dyn Observer) -> V
             };
             observer.level_done(&outcome);
             outcome
+        })
+        .collect()
+}
+
+/// The name a level's outputs are written under (`NAME.lightmap.png`, ...).
+fn level_stem(path: &Path) -> String {
+    path.file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
+
+/// For each level, the earlier level of the batch with the same output
+/// names, if any (`a/room.png` and `b/room.png`, or `room.png` and
+/// `room.bmp`): baking both would silently overwrite the first one's
+/// outputs. The same file listed twice is not a clash.
+fn output_clashes(levels: &[PathBuf]) -> Vec<Option<PathBuf>> {
+    let mut first: std::collections::HashMap<String, &PathBuf> = Default::default();
+    levels
+        .iter()
+        .map(|p| {
+            let f = *first.entry(level_stem(p)).or_insert(p);
+            (f != p).then(|| f.clone())
         })
         .collect()
 }

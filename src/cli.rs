@@ -454,16 +454,23 @@ impl Observer for Progress {
         }
         self.total.inc(1);
         match outcome {
-            LevelOutcome::Baked { path, report } => self.println(
-                format!(
-                    "baked {} in {:.2} s ({}): {}",
-                    path.display(),
-                    report.timings.total,
-                    report.quality,
-                    report.summary()
-                ),
-                false,
-            ),
+            LevelOutcome::Baked { path, report } => {
+                self.println(
+                    format!(
+                        "baked {} in {:.2} s ({}): {}",
+                        path.display(),
+                        report.timings.total,
+                        report.quality,
+                        report.summary()
+                    ),
+                    false,
+                );
+                // Warnings (anti-aliasing, rescaled rows, ...) are also in the
+                // report; a designer at the terminal should see them too.
+                for w in &report.warnings {
+                    self.println(format!("warning: {}: {w}", path.display()), false);
+                }
+            }
             LevelOutcome::Failed { error, .. } => self.println(format!("error: {error}"), true),
         }
     }

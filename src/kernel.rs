@@ -24,12 +24,20 @@ pub struct Falloff {
     sqrt_a: f64,
 }
 
+/// Falloff distances are capped here. At this distance the weight is 1 to
+/// double precision for any level that fits in memory, while squaring a
+/// distance above about 1.3e154 overflows `A` to infinity and turns the
+/// weight into `inf / inf` = NaN (light that was then clamped to black).
+pub const MAX_FALLOFF: f64 = 1e100;
+
 impl Falloff {
-    /// `distance` is the half-energy distance in pixels.
+    /// `distance` is the half-energy distance in pixels; distances above
+    /// [`MAX_FALLOFF`] (including infinity) act as [`MAX_FALLOFF`].
     pub fn new(distance: f64) -> Falloff {
+        let d = distance.min(MAX_FALLOFF);
         Falloff {
-            a: distance * distance,
-            sqrt_a: distance,
+            a: d * d,
+            sqrt_a: d,
         }
     }
 

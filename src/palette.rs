@@ -817,6 +817,14 @@ impl<'a> Parser<'a> {
                         format!("{key} {s} is negative (light cannot be removed)"),
                     ));
                 }
+                Bounds::NonNegative if x > MAX_EMISSION => {
+                    return Err(self.err(
+                        &span,
+                        format!(
+                            "{key} {s} is too large: at most {MAX_EMISSION:e} (a lightmap saturates at 1; light beyond the 32-bit float range of the outputs cannot be stored)"
+                        ),
+                    ));
+                }
                 _ => {}
             }
             *o = x;
@@ -825,12 +833,17 @@ impl<'a> Parser<'a> {
     }
 }
 
+/// Largest emission a palette may give. Radiosity is emission amplified by
+/// up to `1 / (1 - reflectance)`; this keeps it well inside the f32 range of
+/// the lightmap even for reflectance within 1e-15 of 1.
+pub const MAX_EMISSION: f64 = 1e15;
+
 /// The allowed values of a per-channel number.
 #[derive(Clone, Copy)]
 enum Bounds {
     /// `0..=1` (reflectance, albedo); NaN fails the check too.
     Unit,
-    /// Finite and `>= 0` (emission).
+    /// Finite, `>= 0` and at most [`MAX_EMISSION`] (emission).
     NonNegative,
 }
 

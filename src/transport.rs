@@ -288,12 +288,20 @@ impl FormFactors {
             }
             row_ptr.push(col.len());
         }
+        let mut coverage = coverage;
         let dlen = (0..n)
             .map(|i| {
                 let s: f64 = val[row_ptr[i]..row_ptr[i + 1]].iter().sum();
                 if coverage[i] > 0.0 && s > 0.0 {
                     s / coverage[i]
                 } else {
+                    // A patch whose own row is empty (every pair culled by
+                    // the falloff reach) can still be in other patches' rows,
+                    // and so in its own row of the symmetric S. Its coverage
+                    // is then that row's sum, not 0: otherwise the light it
+                    // sends is counted as escaped as well as received, and
+                    // emitted != absorbed + escaped.
+                    coverage[i] = s / len[i];
                     len[i]
                 }
             })
