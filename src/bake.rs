@@ -708,6 +708,19 @@ pub fn bake(
         plan.class_of[c].map_or_else(|| vec![0.0; np], |k| class_b[k].clone())
     });
     solid_pixels(level, &geometry, &patches, &radiosity, &mut rgb);
+    // With responses, the lightmap is their sum at the palette's emission, so
+    // that layers (and a relight with unchanged emission) add up to it
+    // exactly. It differs from the direct result only where the positivity
+    // limiter on patch slopes (`PointRows::slopes`) acts differently on one
+    // emitter's light than on the sum, a small fraction of a percent.
+    if let Some(r) = &responses {
+        let e: Vec<[f64; 3]> = r
+            .emitters
+            .iter()
+            .map(|&m| level.materials[m].emission)
+            .collect();
+        rgb = r.combine(&e);
+    }
     timings.gather = t.elapsed().as_secs_f64();
     timings.total = t_total.elapsed().as_secs_f64();
 

@@ -170,7 +170,8 @@ impl Cache {
             || r.height != cache.height
             || r.images.len() != r.emitters.len() * r.rho_classes
             || r.images.iter().any(|i| i.len() != n)
-            || r.rho_class_of.iter().any(|&k| k >= r.rho_classes.max(1))
+            || r.rho_classes == 0
+            || r.rho_class_of.iter().any(|&k| k >= r.rho_classes)
             || r.emitters.iter().any(|&m| m >= cache.materials.len())
             || cache
                 .cells

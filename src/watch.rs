@@ -98,7 +98,7 @@ pub fn run(
             on(WatchEvent::Level(outcome));
         }
     };
-    let initial: Vec<PathBuf> = batch::collect_levels(&[opts.dir.clone()])
+    let initial: Vec<PathBuf> = batch::collect_levels(std::slice::from_ref(&opts.dir))
         .into_iter()
         .filter(|p| p.is_file())
         .collect();

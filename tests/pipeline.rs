@@ -161,7 +161,21 @@ fn layers_sum_to_the_full_lightmap() {
         eprintln!("layers, falloff {falloff:?}: max error {d:e} of max {m}");
         assert!(m > 0.1, "the level is lit");
         // Linear up to the solver tolerance (1e-6) and float rounding.
-        assert!(d <= 1e-4 * m, "falloff {falloff:?}: layers differ by {d} (max {m})");
+        assert!(
+            d <= 1e-4 * m,
+            "falloff {falloff:?}: layers differ by {d} (max {m})"
+        );
+        // The layered lightmap is the plain bake's, up to the positivity
+        // limiter on patch slopes acting on each emitter's light alone.
+        let mut plain = settings(falloff);
+        plain.responses = false;
+        let direct = bake::bake(&level, &plain, &|_| {}).expect("bakes");
+        let (dp, _) = max_diff(&direct.lightmap.rgb, &baked.lightmap.rgb);
+        eprintln!("layered vs plain bake, falloff {falloff:?}: max difference {dp:e}");
+        assert!(
+            dp <= 5e-3 * m,
+            "layered bake differs from a plain one by {dp}"
+        );
         // The lamp layer alone is not the whole picture: the torch adds light.
         let lamp = layers::layer(r, &e, &groups[0]);
         assert!(max_diff(&baked.lightmap.rgb, &lamp.rgb).0 > 0.01 * m);
@@ -194,7 +208,10 @@ fn bake_layers_writes_files_that_add_up() {
         }
     }
     let (d, m) = max_diff(&full, &sum);
-    assert!(m > 0.1 && d <= 1e-4 * m, "layer files differ by {d} (max {m})");
+    assert!(
+        m > 0.1 && d <= 1e-4 * m,
+        "layer files differ by {d} (max {m})"
+    );
 }
 
 /// Relighting with new emission equals baking the level with that emission
@@ -228,7 +245,10 @@ fn relight_equals_a_fresh_bake_with_the_new_emission() {
             fresh.report.counts.culled_pairs
         );
         assert!(m > 0.1, "the level is lit");
-        assert!(d <= tol, "falloff {falloff:?}: relit differs by {d} (tol {tol}, max {m})");
+        assert!(
+            d <= tol,
+            "falloff {falloff:?}: relit differs by {d} (tol {tol}, max {m})"
+        );
         // And it is not simply the old lightmap.
         assert!(max_diff(&baked.lightmap.rgb, &relit).0 > 0.05 * m);
     }
@@ -261,10 +281,9 @@ fn relight_command_equals_bake_command() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(relit.join("room.lightmap.png").is_file());
-    let report: flatbake::report::Report = serde_json::from_slice(
-        &std::fs::read(relit.join("room.report.json")).expect("report"),
-    )
-    .expect("report parses");
+    let report: flatbake::report::Report =
+        serde_json::from_slice(&std::fs::read(relit.join("room.report.json")).expect("report"))
+            .expect("report parses");
     assert_eq!(report.solver, "relight");
     assert_eq!(report.timings.form_factors, 0.0);
 
@@ -301,7 +320,11 @@ fn relight_refuses_other_versions_levels_and_damaged_files() {
     // Not a cache at all.
     let o = relight(&png, &[]);
     assert_eq!(o.status.code(), Some(1));
-    assert!(stderr(&o).contains("is not a flatbake cache"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("is not a flatbake cache"),
+        "{}",
+        stderr(&o)
+    );
 
     // Another flatbake version: same layout, other version string.
     let version = env!("CARGO_PKG_VERSION").as_bytes();
@@ -314,7 +337,10 @@ fn relight_refuses_other_versions_levels_and_damaged_files() {
     let o = relight(&f, &[]);
     assert_eq!(o.status.code(), Some(1));
     let e = stderr(&o);
-    assert!(e.contains("was written by flatbake") && e.contains("bake the level again"), "{e}");
+    assert!(
+        e.contains("was written by flatbake") && e.contains("bake the level again"),
+        "{e}"
+    );
 
     // Damaged payload, and a truncated file.
     let mut bad = bytes.clone();
@@ -369,7 +395,10 @@ fn unchanged_batch_skips_and_force_or_a_palette_change_bakes() {
     let lightmap = std::fs::read(out.join("room.lightmap.png")).expect("lightmap");
 
     let again = bake(&[]);
-    assert!(again.contains("up to date: ") && again.contains("0 levels baked"), "{again}");
+    assert!(
+        again.contains("up to date: ") && again.contains("0 levels baked"),
+        "{again}"
+    );
     assert!(again.contains("1 up to date"), "{again}");
 
     let forced = bake(&["--force"]);
@@ -451,7 +480,9 @@ fn watch_bakes_after_a_save_and_survives_a_broken_level() {
             matches!(&first, WatchEvent::Level(LevelOutcome::Baked { path, .. }) if is_room(path)),
             "{first:?}"
         );
-        wait_for(&rx, "watching", |e| matches!(e, WatchEvent::Watching { .. }));
+        wait_for(&rx, "watching", |e| {
+            matches!(e, WatchEvent::Watching { .. })
+        });
         let before = std::fs::read(out.join("room.lightmap.png")).expect("baked");
 
         // A broken palette: the level fails, the watcher goes on.
@@ -470,14 +501,18 @@ fn watch_bakes_after_a_save_and_survives_a_broken_level() {
             palette_text([8.0; 3], TORCH_E, [0.0; 3], None),
         )
         .expect("write");
-        wait_for(&rx, "bake after the fix", |e| {
-            matches!(e, WatchEvent::Level(LevelOutcome::Baked { path, .. }) if is_room(path))
-        });
+        wait_for(
+            &rx,
+            "bake after the fix",
+            |e| matches!(e, WatchEvent::Level(LevelOutcome::Baked { path, .. }) if is_room(path)),
+        );
         let after = std::fs::read(out.join("room.lightmap.png")).expect("baked");
         assert_ne!(before, after, "the new palette shows in the lightmap");
 
         // A new level painted into the folder is baked too.
-        level_pixels().save(levels.join("second.png")).expect("write");
+        level_pixels()
+            .save(levels.join("second.png"))
+            .expect("write");
         wait_for(&rx, "bake of a new level", |e| {
             matches!(e, WatchEvent::Level(LevelOutcome::Baked { path, .. })
                 if path.file_name().is_some_and(|n| n == "second.png"))
@@ -501,7 +536,10 @@ fn watch_maps_files_to_levels() {
         watch::affected_levels(d, &d.join("b.palette.toml")),
         vec![b.clone()]
     );
-    assert_eq!(watch::affected_levels(d, &d.join("palette.toml")), vec![a, b]);
+    assert_eq!(
+        watch::affected_levels(d, &d.join("palette.toml")),
+        vec![a, b]
+    );
     assert!(watch::affected_levels(d, &d.join("a.lightmap.png")).is_empty());
     assert!(watch::affected_levels(d, &d.join(".flatbake-x.tmp")).is_empty());
 }
