@@ -1,27 +1,43 @@
+//! Checks that light layers add up to a lightmap: reads a lightmap EXR and
+//! any number of layer EXRs, and prints the largest absolute and relative
+//! difference between the lightmap and the sum of the layers.
+//!
+//! `cargo run --release --example layer_sum_check -- out/L.lightmap.exr out/L.layer-*.exr`
+
 use flatbake::output::read_lightmap_exr;
-fn main() {
-    let mut a = std::env::args().skip(1);
-    let full = a.next().unwrap();
-    let (_, _, f) = read_lightmap_exr(full.as_ref()).unwrap();
-    let mut s = vec![[0f32; 3]; f.len()];
-    for l in a {
-        let (_, _, v) = read_lightmap_exr(l.as_ref()).unwrap();
-        for (x, y) in s.iter_mut().zip(&v) {
+
+fn main() -> Result<(), String> {
+    let mut args = std::env::args().skip(1);
+    let full = args
+        .next()
+        .ok_or("usage: layer_sum_check LIGHTMAP.exr LAYER.exr...")?;
+    let (_, _, f) = read_lightmap_exr(full.as_ref()).map_err(|e| e.to_string())?;
+    let mut sum = vec![[0f32; 3]; f.len()];
+    for layer in args {
+        let (_, _, v) = read_lightmap_exr(layer.as_ref()).map_err(|e| e.to_string())?;
+        if v.len() != f.len() {
+            return Err(format!("{layer} has another size than {full}"));
+        }
+        for (s, x) in sum.iter_mut().zip(&v) {
             for c in 0..3 {
-                x[c] += y[c];
+                s[c] += x[c];
             }
         }
     }
-    let (mut d, mut m, mut rel) = (0f64, 0f64, 0f64);
-    for (x, y) in f.iter().zip(&s) {
+    let (mut abs, mut max, mut rel) = (0f64, 0f64, 0f64);
+    for (x, s) in f.iter().zip(&sum) {
         for c in 0..3 {
-            let e = (x[c] as f64 - y[c] as f64).abs();
-            d = d.max(e);
-            m = m.max(x[c] as f64);
+            let e = (x[c] as f64 - s[c] as f64).abs();
+            abs = abs.max(e);
+            max = max.max(x[c] as f64);
+            // Relative error only where there is light worth speaking of.
             if x[c] > 0.01 {
                 rel = rel.max(e / x[c] as f64);
             }
         }
     }
-    println!("max abs error {d:e}, max value {m}, max rel error (values > 0.01) {rel:e}");
+    println!(
+        "max abs difference {abs:e} (brightest value {max}); max relative difference where > 0.01: {rel:e}"
+    );
+    Ok(())
 }

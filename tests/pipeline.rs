@@ -249,6 +249,20 @@ fn relight_equals_a_fresh_bake_with_the_new_emission() {
             d <= tol,
             "falloff {falloff:?}: relit differs by {d} (tol {tol}, max {m})"
         );
+        // A relight is exactly what a layered bake with the new emission
+        // writes (both are sums of per-emitter light); only falloff culling,
+        // relative to each bake's brightest emission, differs.
+        let layered = bake::bake(&fresh_level, &settings(falloff), &|_| {}).expect("bakes");
+        let (dl, _) = max_diff(&layered.lightmap.rgb, &relit);
+        let tol_layered = match falloff {
+            None => 1e-5 * m,
+            Some(_) => 1e-5 * m + 10.0 * Quality::Normal.knobs().reach_bound * e_max,
+        };
+        eprintln!("relight vs layered bake, falloff {falloff:?}: max error {dl:e}");
+        assert!(
+            dl <= tol_layered,
+            "relit differs from a layered bake by {dl}"
+        );
         // And it is not simply the old lightmap.
         assert!(max_diff(&baked.lightmap.rgb, &relit).0 > 0.05 * m);
     }
