@@ -24,20 +24,21 @@ fn main() -> Result<(), String> {
             }
         }
     }
-    let (mut abs, mut max, mut rel) = (0f64, 0f64, 0f64);
+    let max = f.iter().flatten().fold(0f64, |m, &v| m.max(v as f64));
+    let (mut abs, mut rel) = (0f64, 0f64);
     for (x, s) in f.iter().zip(&sum) {
         for c in 0..3 {
             let e = (x[c] as f64 - s[c] as f64).abs();
             abs = abs.max(e);
-            max = max.max(x[c] as f64);
-            // Relative error only where there is light worth speaking of.
-            if x[c] > 0.01 {
+            // Relative error only where there is light worth speaking of:
+            // at least 1% of the brightest value.
+            if x[c] as f64 > 0.01 * max {
                 rel = rel.max(e / x[c] as f64);
             }
         }
     }
     println!(
-        "max abs difference {abs:e} (brightest value {max}); max relative difference where > 0.01: {rel:e}"
+        "max abs difference {abs:e} (brightest value {max}); max relative difference where above 1% of it: {rel:e}"
     );
     Ok(())
 }

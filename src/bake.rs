@@ -101,8 +101,9 @@ pub struct Responses {
     pub rho_classes: usize,
     /// `images[m * rho_classes + r]` for emitter `m` (position in `emitters`).
     pub images: Vec<Vec<f32>>,
-    /// The emission the responses were traced with (they are stored divided
-    /// by it); with falloff, culling is exact for emission up to this.
+    /// The emission the responses were traced with (1; they are stored
+    /// divided by it). With falloff, the pairs culled were chosen against it,
+    /// independently of the palette's emission.
     pub traced_emission: f64,
 }
 
@@ -460,9 +461,8 @@ pub fn bake(
         }
         class_b.push(b);
     }
-    // Response vectors: each emitter material alone, at the level's brightest
-    // emission (so that falloff culling bounds them like the bake itself),
-    // once per reflectance class.
+    // Response vectors: each emitter material alone at unit emission, once per
+    // reflectance class.
     let e_max = level
         .materials
         .iter()
@@ -470,7 +470,7 @@ pub fn bake(
         .filter(|(_, u)| **u)
         .flat_map(|(m, _)| m.emission)
         .fold(0.0, f64::max);
-    let traced_emission = if e_max > 0.0 { e_max } else { 1.0 };
+    let traced_emission = 1.0;
     let mut resp_b: Vec<Vec<f64>> = Vec::new();
     let mut resp_rho: Vec<usize> = Vec::new();
     let mut resp_edge_e: Vec<Vec<f64>> = Vec::new();
@@ -571,12 +571,22 @@ pub fn bake(
     let rad = Radiosity::new(&patches, &all_b, &slopes, &edge_e);
     // With falloff, pairs whose light is below the preset's bound (relative
     // to the brightest emission) are not gathered.
+    // With responses, the lightmap is made of them alone, and the reach comes
+    // from them alone (unit emission, bound relative to it): then what is
+    // culled does not depend on emission, and a relight with any emission is
+    // exactly the bake of that emission. Each culled pair still stays below
+    // reach_bound x its emitter's emission.
+    let (reach_comps, reach_threshold) = if resp_b.is_empty() {
+        (0..kk, settings.knobs.reach_bound * e_max)
+    } else {
+        (k_main..kk, settings.knobs.reach_bound * traced_emission)
+    };
     let reach = {
         let bmax: Vec<f64> = (0..edges.len())
             .map(|ei| {
                 let mut m: f64 = 0.0;
                 for p in patches.of_edge(ei) {
-                    for c in 0..kk {
+                    for c in reach_comps.clone() {
                         m = m.max(
                             rad.patch(&patches, p, c)
                                 + rad.slope[p * kk + c].abs() * 0.5 * patches.length(p),
@@ -592,7 +602,7 @@ pub fn bake(
             &bmax,
             falloff,
             1.0 / std::f64::consts::TAU,
-            settings.knobs.reach_bound * e_max,
+            reach_threshold,
         )
     };
     // Free components that no lit edge faces receive nothing: not gathered.
