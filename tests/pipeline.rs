@@ -554,3 +554,51 @@ fn watch_maps_files_to_levels() {
     assert!(watch::affected_levels(d, &d.join("a.lightmap.png")).is_empty());
     assert!(watch::affected_levels(d, &d.join(".flatbake-x.tmp")).is_empty());
 }
+
+/// Polls up to 20 s for `f` to hold.
+fn eventually(what: &str, f: impl Fn() -> bool) {
+    let deadline = std::time::Instant::now() + Duration::from_secs(20);
+    while !f() {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "no {what} within 20 s"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// The `watch` command end to end: first bake, then a bake after a save.
+#[test]
+fn watch_command_bakes_and_rebakes() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let levels = dir.path().join("levels");
+    std::fs::create_dir(&levels).expect("mkdir");
+    write_level(&levels, "room", &default_palette());
+    let out = dir.path().join("out");
+    let mut child = Command::new(BIN)
+        .args(["watch", s(&levels), "-o", s(&out), "-q", "draft"])
+        .args(["--debounce", "100"])
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("start flatbake watch");
+    let stamp = out.join("room.stamp.json");
+    let result = std::panic::catch_unwind(|| {
+        eventually("first bake", || stamp.is_file());
+        let first = std::fs::read(&stamp).expect("stamp");
+        // Watching starts before the first bake, so this save is seen.
+        std::fs::write(
+            levels.join("room.palette.toml"),
+            palette_text([9.0; 3], TORCH_E, [0.0; 3], None),
+        )
+        .expect("write");
+        eventually("bake after the save", || {
+            std::fs::read(&stamp).is_ok_and(|now| now != first)
+        });
+    });
+    // Stop the watcher this test started, whatever happened.
+    let _ = child.kill();
+    let _ = child.wait();
+    if let Err(e) = result {
+        std::panic::resume_unwind(e);
+    }
+}
