@@ -356,3 +356,99 @@ pub fn relight(cache_path: &Path, opts: &RelightOptions) -> Result<Report, Strin
         .collect();
     Ok(report)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tiny() -> Cache {
+        let wall = Material {
+            color: [1, 2, 3],
+            kind: MaterialKind::Wall,
+            reflectance: [0.5; 3],
+            emission: [0.0; 3],
+            group: None,
+            line: None,
+        };
+        let lamp = Material {
+            color: [255, 255, 255],
+            kind: MaterialKind::Emitter,
+            reflectance: [0.0; 3],
+            emission: [2.0; 3],
+            group: None,
+            line: None,
+        };
+        Cache {
+            level: "tiny".into(),
+            width: 2,
+            height: 1,
+            cells: vec![1, 3],
+            albedo: vec![[0.5; 3]; 2],
+            materials: vec![wall, lamp],
+            image_hash: String::new(),
+            inputs_hash: String::new(),
+            report: Report::default(),
+            exposure: 1.0,
+            depth16: false,
+            rgbm: false,
+            responses: Responses {
+                width: 2,
+                height: 1,
+                emitters: vec![1],
+                rho_class_of: [0; 3],
+                rho_classes: 1,
+                images: vec![vec![0.25, 1.0]],
+                traced_emission: 1.0,
+            },
+        }
+    }
+
+    #[test]
+    fn a_cache_reads_back_and_relights_linearly() {
+        let bytes = tiny().to_bytes().expect("encodes");
+        let c = Cache::from_bytes(&bytes, "t").expect("reads");
+        let e = c
+            .emission(&[([255, 255, 255], [4.0, 0.0, 1.0])])
+            .expect("emitter");
+        assert_eq!(
+            c.responses.combine(&e),
+            vec![[1.0, 0.0, 0.25], [4.0, 0.0, 1.0]]
+        );
+        let err = c.emission(&[([1, 2, 3], [1.0; 3])]).expect_err("a wall");
+        assert!(err.contains("#010203 is a wall"), "{err}");
+    }
+
+    #[test]
+    fn inconsistent_sizes_are_damaged_not_a_panic() {
+        for broken in [
+            |c: &mut Cache| c.cells.push(1),
+            |c: &mut Cache| c.responses.images[0].truncate(1),
+            |c: &mut Cache| c.responses.rho_classes = 0,
+            |c: &mut Cache| c.responses.emitters[0] = 7,
+            |c: &mut Cache| c.cells[1] = 9,
+        ] {
+            let mut c = tiny();
+            broken(&mut c);
+            let err = Cache::from_bytes(&c.to_bytes().expect("encodes"), "t").expect_err("refused");
+            assert!(err.contains("damaged"), "{err}");
+        }
+    }
+
+    #[test]
+    fn emission_arguments_parse_or_say_why_not() {
+        assert_eq!(
+            parse_emission("#fffadc=10,9,7"),
+            Ok(([255, 250, 220], [10.0, 9.0, 7.0]))
+        );
+        assert_eq!(parse_emission("#000001=2"), Ok(([0, 0, 1], [2.0; 3])));
+        for bad in [
+            "#fffadc",
+            "fffadc=1",
+            "#fffadc=1,2",
+            "#fffadc=-1",
+            "#fffadc=x",
+        ] {
+            assert!(parse_emission(bad).is_err(), "{bad}");
+        }
+    }
+}
