@@ -261,6 +261,23 @@ pub fn bake_one(
         .filter_map(|p| p.file_name())
         .map(|n| n.to_string_lossy().into_owned())
         .collect();
+    if opts.layers || opts.cache {
+        list_extra_outputs(&opts.out_dir, &level.name, &report.outputs)?;
+    }
     crate::stamp::write(path, opts, &inputs, &report.outputs)?;
     Ok(report)
+}
+
+/// The report is written before the layers and the cache (it comes from
+/// [`output::write_level_outputs`]); list those files in it too, so that
+/// scripts find every output in `NAME.report.json`.
+fn list_extra_outputs(dir: &Path, name: &str, outputs: &[String]) -> Result<(), String> {
+    let path = dir.join(output::OutputKind::Report.file_name(name));
+    let text = std::fs::read(&path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let mut written: Report = serde_json::from_slice(&text)
+        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    written.outputs = outputs.to_vec();
+    let mut json = serde_json::to_vec_pretty(&written).map_err(|e| e.to_string())?;
+    json.push(b'\n');
+    output::write_file_atomic(&path, &json).map_err(|e| e.to_string())
 }

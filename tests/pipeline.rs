@@ -194,6 +194,20 @@ fn bake_layers_writes_files_that_add_up() {
     )
     .expect("manifest parses");
     assert_eq!(manifest.groups.len(), 3);
+    let report: flatbake::report::Report =
+        serde_json::from_slice(&std::fs::read(out.join("room.report.json")).expect("report"))
+            .expect("report parses");
+    for f in [
+        "room.layers.json",
+        "room.layer-lamps.exr",
+        "room.report.json",
+    ] {
+        assert!(
+            report.outputs.iter().any(|o| o == f),
+            "{f} in {:?}",
+            report.outputs
+        );
+    }
     assert_eq!(manifest.groups[0].name, "lamps");
     assert_eq!(manifest.groups[1].emitters[0].emission, TORCH_E);
     let (_, _, full) = read_lightmap_exr(&out.join(&manifest.lightmap_exr)).expect("full exr");
