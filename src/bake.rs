@@ -39,6 +39,9 @@ pub struct Settings {
     pub bounces: Option<u32>,
     /// Sample points per patch for the naive gather.
     pub naive_samples: usize,
+    /// Also compute the light of each emitter material on its own
+    /// ([`Responses`]), for light layers and the relight cache.
+    pub responses: bool,
 }
 
 impl Settings {
@@ -51,6 +54,7 @@ impl Settings {
             gather: GatherMethod::Fast,
             bounces: None,
             naive_samples: 8,
+            responses: false,
         }
     }
 }
@@ -73,6 +77,104 @@ pub struct Baked {
     pub radiosity: [Vec<f64>; 3],
     pub lightmap: Lightmap,
     pub report: Report,
+    /// Per-emitter light, when [`Settings::responses`] asked for it.
+    pub responses: Option<Responses>,
+}
+
+/// The light of every emitter material on its own, per reflectance class:
+/// because light is linear in emission, the lightmap for any emission is
+/// `sum over emitters m of emission_m[c] * image(m, rho_class_of[c])`.
+///
+/// Images are row-major `width * height` per unit emission (floor pixels:
+/// gathered light; solid pixels: mean radiosity of their exposed sides;
+/// void: 0).
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct Responses {
+    pub width: usize,
+    pub height: usize,
+    /// Indices into [`Level::materials`] of the emitter materials, in order.
+    pub emitters: Vec<usize>,
+    /// Which reflectance class each channel uses.
+    pub rho_class_of: [usize; 3],
+    /// Number of reflectance classes (channels with equal reflectance for
+    /// every material share one).
+    pub rho_classes: usize,
+    /// `images[m * rho_classes + r]` for emitter `m` (position in `emitters`).
+    pub images: Vec<Vec<f32>>,
+    /// The emission the responses were traced with (1; they are stored
+    /// divided by it). With falloff, the pairs culled were chosen against it,
+    /// independently of the palette's emission.
+    pub traced_emission: f64,
+}
+
+impl Responses {
+    /// The lightmap for `emission[m]` per emitter (in `emitters` order);
+    /// negative or non-finite values (never expected) become 0.
+    pub fn combine(&self, emission: &[[f64; 3]]) -> Vec<[f32; 3]> {
+        let n = self.width * self.height;
+        let mut rgb = vec![[0f32; 3]; n];
+        for (m, e) in emission.iter().enumerate().take(self.emitters.len()) {
+            for c in 0..3 {
+                if e[c] == 0.0 {
+                    continue;
+                }
+                let img = &self.images[m * self.rho_classes + self.rho_class_of[c]];
+                for (px, v) in rgb.iter_mut().zip(img) {
+                    px[c] += (e[c] * *v as f64) as f32;
+                }
+            }
+        }
+        for p in &mut rgb {
+            for v in p.iter_mut() {
+                if !v.is_finite() || *v < 0.0 {
+                    *v = 0.0;
+                }
+            }
+        }
+        rgb
+    }
+}
+
+/// Which response vectors a bake traces besides its own channels.
+struct ResponsePlan {
+    emitters: Vec<usize>,
+    rho_class_of: [usize; 3],
+    rho_reps: Vec<usize>,
+}
+
+impl ResponsePlan {
+    fn new(level: &Level, used: &[bool]) -> ResponsePlan {
+        let emitters = level
+            .materials
+            .iter()
+            .enumerate()
+            .filter(|(i, m)| used[*i] && m.kind == crate::material::MaterialKind::Emitter)
+            .map(|(i, _)| i)
+            .collect();
+        let mut rho_class_of = [0; 3];
+        let mut rho_reps: Vec<usize> = Vec::new();
+        for c in 0..3 {
+            let same = |a: usize| {
+                level
+                    .materials
+                    .iter()
+                    .zip(used)
+                    .all(|(m, &u)| !u || m.reflectance[a] == m.reflectance[c])
+            };
+            match rho_reps.iter().position(|&r| same(r)) {
+                Some(k) => rho_class_of[c] = k,
+                None => {
+                    rho_class_of[c] = rho_reps.len();
+                    rho_reps.push(c);
+                }
+            }
+        }
+        ResponsePlan {
+            emitters,
+            rho_class_of,
+            rho_reps,
+        }
+    }
 }
 
 /// Which channels need a solve, and which can copy another or be zero.
@@ -223,22 +325,43 @@ pub fn bake(
         );
         need_bounce = false;
     }
+    // Responses trace every emitter material, whatever its palette emission,
+    // so that a relight may switch it on.
+    let resp_plan = settings.responses.then(|| ResponsePlan::new(level, &used));
+    let emitter_patch: Vec<bool> = (0..np)
+        .map(|p| mat(p).kind == crate::material::MaterialKind::Emitter)
+        .collect();
+    let mut resp_bounce = resp_plan.as_ref().is_some_and(|rp| {
+        !rp.emitters.is_empty()
+            && np > 0
+            && settings.bounces != Some(0)
+            && rp.rho_reps.iter().any(|&c| rho[c].iter().any(|&r| r > 0.0))
+    });
 
     let mut form_factors = None;
     let mut paper_rows: Option<Vec<Vec<(u32, f64)>>> = None;
     let mut point_rows = None;
     let mut culled_pairs = 0u64;
-    if need_bounce {
+    if need_bounce || resp_bounce {
         progress("form factors");
         let t = Instant::now();
         // Row iterator over whichever F was built, to look for light.
-        let sees_light = |row: &dyn Fn(usize) -> Vec<(usize, f64)>| {
+        let sees = |row: &dyn Fn(usize) -> Vec<(usize, f64)>,
+                    channels: &[usize],
+                    source: &dyn Fn(usize) -> bool| {
             (0..np).any(|i| {
-                plan.classes.iter().any(|&c| rho[c][i] > 0.0)
-                    && row(i)
-                        .iter()
-                        .any(|&(j, f)| j != i && f > 0.0 && (0..3).any(|c| emit[c][j] > 0.0))
+                channels.iter().any(|&c| rho[c][i] > 0.0)
+                    && row(i).iter().any(|&(j, f)| j != i && f > 0.0 && source(j))
             })
+        };
+        let resp_reps: Vec<usize> = resp_plan
+            .as_ref()
+            .map_or_else(Vec::new, |rp| rp.rho_reps.clone());
+        let sees_light = |row: &dyn Fn(usize) -> Vec<(usize, f64)>| {
+            (
+                sees(row, &plan.classes, &|j| (0..3).any(|c| emit[c][j] > 0.0)),
+                sees(row, &resp_reps, &|j| emitter_patch[j]),
+            )
         };
         let lit = match settings.kernel {
             Kernel::Flatland => {
@@ -272,8 +395,10 @@ pub fn bake(
             }
         };
         timings.form_factors = t.elapsed().as_secs_f64();
+        let (lit, resp_lit) = lit;
+        resp_bounce &= resp_lit;
         // Reflecting patches that see no emitter receive nothing: no bounce.
-        if !lit {
+        if need_bounce && !lit {
             skip(
                 &mut skipped,
                 "bounce",
@@ -293,47 +418,101 @@ pub fn bake(
         tolerance: settings.knobs.tolerance,
         ..SolveSettings::default()
     };
+    // One channel's solve for emission `e`: (B, residual, solver, rows rescaled).
+    let solve_one = |c: usize, e: &[f64]| -> Result<(Vec<f64>, f64, String, usize), BakeError> {
+        if let Some(rows) = &paper_rows {
+            let (b, rescaled) = crate::paper::solve(rows, &rho[c], e, settings.knobs.tolerance);
+            return Ok((b, 0.0, "paper".into(), rescaled));
+        }
+        let ff = form_factors
+            .as_ref()
+            .expect("flatland kernel builds F when a bounce is needed");
+        if let Some(n) = settings.bounces {
+            return Ok((
+                solve::truncated(ff, &rho[c], e, n),
+                0.0,
+                "bounces".into(),
+                0,
+            ));
+        }
+        let s = solve::solve_channel(ff, &rho[c], e, &solve_settings).map_err(|err| match err {
+            SolveError::Unbounded { patches: ps } => BakeError::Unbounded {
+                message: unbounded_message(&geometry, &patches, &ps, CHANNEL[c]),
+            },
+            other => BakeError::Solve(other),
+        })?;
+        Ok((s.radiosity, s.residual, s.method.to_string(), 0))
+    };
     for &c in &plan.classes {
         if !need_bounce {
             class_b.push(emit[c].clone());
             continue;
         }
         solves += 1;
-        let b = if let Some(rows) = &paper_rows {
-            let (b, rescaled) =
-                crate::paper::solve(rows, &rho[c], &emit[c], settings.knobs.tolerance);
-            solver = "paper".into();
-            if rescaled > 0 {
-                warnings.push(format!(
-                    "paper kernel, {} channel: {rescaled} rows of rho F summed to 1 or more and were rescaled (F normalised per row, rho F capped at {})",
-                    CHANNEL[c],
-                    crate::paper::MAX_ROW
-                ));
-            }
-            b
-        } else {
-            let ff = form_factors
-                .as_ref()
-                .expect("flatland kernel builds F when a bounce is needed");
-            if let Some(n) = settings.bounces {
-                solver = "bounces".into();
-                solve::truncated(ff, &rho[c], &emit[c], n)
-            } else {
-                let s =
-                    solve::solve_channel(ff, &rho[c], &emit[c], &solve_settings).map_err(|e| {
-                        match e {
-                            SolveError::Unbounded { patches: ps } => BakeError::Unbounded {
-                                message: unbounded_message(&geometry, &patches, &ps, CHANNEL[c]),
-                            },
-                            other => BakeError::Solve(other),
-                        }
-                    })?;
-                residual = residual.max(s.residual);
-                solver = s.method.to_string();
-                s.radiosity
-            }
-        };
+        let (b, res, method, rescaled) = solve_one(c, &emit[c])?;
+        residual = residual.max(res);
+        solver = method;
+        if rescaled > 0 {
+            warnings.push(format!(
+                "paper kernel, {} channel: {rescaled} rows of rho F summed to 1 or more and were rescaled (F normalised per row, rho F capped at {})",
+                CHANNEL[c],
+                crate::paper::MAX_ROW
+            ));
+        }
         class_b.push(b);
+    }
+    // Response vectors: each emitter material alone at unit emission, once per
+    // reflectance class.
+    let e_max = level
+        .materials
+        .iter()
+        .zip(&used)
+        .filter(|(_, u)| **u)
+        .flat_map(|(m, _)| m.emission)
+        .fold(0.0, f64::max);
+    let traced_emission = 1.0;
+    let mut resp_b: Vec<Vec<f64>> = Vec::new();
+    let mut resp_rho: Vec<usize> = Vec::new();
+    let mut resp_edge_e: Vec<Vec<f64>> = Vec::new();
+    if let Some(rp) = &resp_plan {
+        for &m in &rp.emitters {
+            let e: Vec<f64> = (0..np)
+                .map(|p| {
+                    if edges[patches.edge[p] as usize].material as usize == m {
+                        traced_emission
+                    } else {
+                        0.0
+                    }
+                })
+                .collect();
+            let ee: Vec<f64> = edges
+                .iter()
+                .map(|ed| {
+                    if ed.material as usize == m {
+                        traced_emission
+                    } else {
+                        0.0
+                    }
+                })
+                .collect();
+            for &c in &rp.rho_reps {
+                let b = if resp_bounce {
+                    solve_one(c, &e)
+                        .map_err(|err| match err {
+                            BakeError::Unbounded { message } => BakeError::Unbounded {
+                                message: format!("light layers: {message}"),
+                            },
+                            other => other,
+                        })?
+                        .0
+                } else {
+                    e.clone()
+                };
+                resp_b.push(b);
+                resp_rho.push(c);
+                resp_edge_e.push(ee.clone());
+            }
+        }
     }
     timings.solve = t.elapsed().as_secs_f64();
 
@@ -351,34 +530,63 @@ pub fn bake(
     // Gather.
     progress("gather");
     let t = Instant::now();
-    let kk = class_b.len();
-    let edge_e: Vec<Vec<f64>> = plan.classes.iter().map(|&c| edge_emit[c].clone()).collect();
+    // Components gathered together (visibility found once per pixel): the
+    // bake's own channel classes, then the response vectors.
+    let k_main = class_b.len();
+    let kk = k_main + resp_b.len();
+    let mut edge_e: Vec<Vec<f64>> = plan.classes.iter().map(|&c| edge_emit[c].clone()).collect();
+    edge_e.extend(resp_edge_e);
     // Linear profiles along patches from the radiosity at the quadrature points.
-    let slopes: Vec<Vec<f64>> = match (&point_rows, need_bounce) {
-        (Some(pr), true) => plan
-            .classes
-            .iter()
-            .zip(&class_b)
-            .map(|(&c, b)| pr.slopes(&patches, &rho[c], &emit[c], b))
-            .collect(),
+    let slopes: Vec<Vec<f64>> = match &point_rows {
+        Some(pr) if need_bounce || resp_bounce => {
+            let mut v: Vec<Vec<f64>> = plan
+                .classes
+                .iter()
+                .zip(&class_b)
+                .map(|(&c, b)| {
+                    if need_bounce {
+                        pr.slopes(&patches, &rho[c], &emit[c], b)
+                    } else {
+                        vec![0.0; np]
+                    }
+                })
+                .collect();
+            for (j, b) in resp_b.iter().enumerate() {
+                v.push(if resp_bounce {
+                    // The emission of this vector, per patch.
+                    let e: Vec<f64> = (0..np)
+                        .map(|p| edge_e[k_main + j][patches.edge[p] as usize])
+                        .collect();
+                    pr.slopes(&patches, &rho[resp_rho[j]], &e, b)
+                } else {
+                    vec![0.0; np]
+                });
+            }
+            v
+        }
         _ => Vec::new(),
     };
-    let rad = Radiosity::new(&patches, &class_b, &slopes, &edge_e);
+    let mut all_b = class_b.clone();
+    all_b.extend(resp_b.iter().cloned());
+    let rad = Radiosity::new(&patches, &all_b, &slopes, &edge_e);
     // With falloff, pairs whose light is below the preset's bound (relative
     // to the brightest emission) are not gathered.
+    // With responses, the lightmap is made of them alone, and the reach comes
+    // from them alone (unit emission, bound relative to it): then what is
+    // culled does not depend on emission, and a relight with any emission is
+    // exactly the bake of that emission. Each culled pair still stays below
+    // reach_bound x its emitter's emission.
+    let (reach_comps, reach_threshold) = if resp_b.is_empty() {
+        (0..kk, settings.knobs.reach_bound * e_max)
+    } else {
+        (k_main..kk, settings.knobs.reach_bound * traced_emission)
+    };
     let reach = {
-        let e_max = level
-            .materials
-            .iter()
-            .zip(&used)
-            .filter(|(_, u)| **u)
-            .flat_map(|(m, _)| m.emission)
-            .fold(0.0, f64::max);
         let bmax: Vec<f64> = (0..edges.len())
             .map(|ei| {
                 let mut m: f64 = 0.0;
                 for p in patches.of_edge(ei) {
-                    for c in 0..kk {
+                    for c in reach_comps.clone() {
                         m = m.max(
                             rad.patch(&patches, p, c)
                                 + rad.slope[p * kk + c].abs() * 0.5 * patches.length(p),
@@ -394,7 +602,7 @@ pub fn bake(
             &bmax,
             falloff,
             1.0 / std::f64::consts::TAU,
-            settings.knobs.reach_bound * e_max,
+            reach_threshold,
         )
     };
     // Free components that no lit edge faces receive nothing: not gathered.
@@ -476,11 +684,53 @@ pub fn bake(
             }
         }
     }
+    let responses = resp_plan.map(|rp| {
+        let n = level.width * level.height;
+        let zeros = vec![0.0; np];
+        let images = resp_b
+            .iter()
+            .enumerate()
+            .map(|(j, b)| {
+                let mut img = vec![[0f32; 3]; n];
+                for (i, p) in reached.iter().enumerate() {
+                    img[p[1] as usize * level.width + p[0] as usize][0] =
+                        values[i * kk + k_main + j] as f32;
+                }
+                let one = [b.clone(), zeros.clone(), zeros.clone()];
+                solid_pixels(level, &geometry, &patches, &one, &mut img);
+                img.iter()
+                    .map(|v| (v[0] as f64 / traced_emission) as f32)
+                    .collect()
+            })
+            .collect();
+        Responses {
+            width: level.width,
+            height: level.height,
+            emitters: rp.emitters,
+            rho_class_of: rp.rho_class_of,
+            rho_classes: rp.rho_reps.len(),
+            images,
+            traced_emission,
+        }
+    });
     // Solid pixels: mean radiosity of their exposed sides.
     let radiosity: [Vec<f64>; 3] = std::array::from_fn(|c| {
         plan.class_of[c].map_or_else(|| vec![0.0; np], |k| class_b[k].clone())
     });
     solid_pixels(level, &geometry, &patches, &radiosity, &mut rgb);
+    // With responses, the lightmap is their sum at the palette's emission, so
+    // that layers (and a relight with unchanged emission) add up to it
+    // exactly. It differs from the direct result only where the positivity
+    // limiter on patch slopes (`PointRows::slopes`) acts differently on one
+    // emitter's light than on the sum, a small fraction of a percent.
+    if let Some(r) = &responses {
+        let e: Vec<[f64; 3]> = r
+            .emitters
+            .iter()
+            .map(|&m| level.materials[m].emission)
+            .collect();
+        rgb = r.combine(&e);
+    }
     timings.gather = t.elapsed().as_secs_f64();
     timings.total = t_total.elapsed().as_secs_f64();
 
@@ -555,6 +805,7 @@ pub fn bake(
             rgb,
         },
         report,
+        responses,
     })
 }
 

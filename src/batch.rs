@@ -34,6 +34,12 @@ pub struct BatchOptions {
     pub depth: Depth,
     pub rgbm: bool,
     pub limits: LoadLimits,
+    /// Also write one layer per light group (implies the EXR lightmap).
+    pub layers: bool,
+    /// Also write the relight cache `NAME.flatbake`.
+    pub cache: bool,
+    /// Bake even levels whose outputs are up to date.
+    pub force: bool,
 }
 
 impl Default for BatchOptions {
@@ -51,6 +57,9 @@ impl Default for BatchOptions {
             depth: Depth::Eight,
             rgbm: false,
             limits: LoadLimits::default(),
+            layers: false,
+            cache: false,
+            force: false,
         }
     }
 }
@@ -58,14 +67,27 @@ impl Default for BatchOptions {
 /// What happened to one level.
 #[derive(Debug)]
 pub enum LevelOutcome {
-    Baked { path: PathBuf, report: Box<Report> },
-    Failed { path: PathBuf, error: String },
+    Baked {
+        path: PathBuf,
+        report: Box<Report>,
+    },
+    Failed {
+        path: PathBuf,
+        error: String,
+    },
+    /// Not baked: its outputs were made from the same image, palette,
+    /// settings and flatbake version, and all still exist.
+    UpToDate {
+        path: PathBuf,
+    },
 }
 
 impl LevelOutcome {
     pub fn path(&self) -> &Path {
         match self {
-            LevelOutcome::Baked { path, .. } | LevelOutcome::Failed { path, .. } => path,
+            LevelOutcome::Baked { path, .. }
+            | LevelOutcome::Failed { path, .. }
+            | LevelOutcome::UpToDate { path } => path,
         }
     }
 }
@@ -119,7 +141,8 @@ pub fn collect_levels(paths: &[PathBuf]) -> Vec<PathBuf> {
     out
 }
 
-fn is_level_file(p: &Path) -> bool {
+/// True for image files that are levels (not flatbake's own outputs).
+pub fn is_level_file(p: &Path) -> bool {
     let name = p.file_name().and_then(|n| n.to_str()).unwrap_or("");
     let ext = p
         .extension()
@@ -140,6 +163,11 @@ pub fn run(paths: &[PathBuf], opts: &BatchOptions, observer: &dyn Observer) -> V
         .par_iter()
         .zip(&clashes)
         .map(|(path, clash)| {
+            if clash.is_none() && !opts.force && crate::stamp::up_to_date(path, opts) {
+                let outcome = LevelOutcome::UpToDate { path: path.clone() };
+                observer.level_done(&outcome);
+                return outcome;
+            }
             observer.level_started(path);
             let result = match clash {
                 Some(first) => Err(format!(
@@ -206,6 +234,8 @@ pub fn bake_one(
     let palette =
         Palette::resolve_for_level(path, opts.palette.as_deref()).map_err(|e| e.to_string())?;
     let level = level::load_level(path, &palette, opts.limits).map_err(|e| e.to_string())?;
+    // What the stamp and cache record; hashed right after loading.
+    let inputs = crate::stamp::inputs(path, opts)?;
     let load = t.elapsed().as_secs_f64();
 
     let mut settings = Settings::new(opts.quality);
@@ -213,6 +243,7 @@ pub fn bake_one(
     settings.bounces = opts.bounces.or(palette.settings.bounces);
     settings.kernel = opts.kernel;
     settings.gather = opts.gather;
+    settings.responses = opts.layers || opts.cache;
     let exposure = opts.exposure.or(palette.settings.exposure).unwrap_or(1.0);
 
     let baked = bake::bake(&level, &settings, &|stage| observer.stage(path, stage))
@@ -225,18 +256,61 @@ pub fn bake_one(
     let out_opts = OutputOptions {
         exposure,
         depth: opts.depth,
-        hdr: opts.hdr,
+        hdr: opts.hdr || opts.layers,
         rgbm: opts.rgbm,
     };
     // Writing adds its own time to `write` and `total`.
     report.timings.total = t_total.elapsed().as_secs_f64();
-    let written =
+    let mut written =
         output::write_level_outputs(&opts.out_dir, &level, &baked.lightmap, &report, &out_opts)
             .map_err(|e| e.to_string())?;
+    if let Some(resp) = baked.responses {
+        if opts.layers {
+            let emission = crate::layers::palette_emission(&level, &resp);
+            written.extend(
+                crate::layers::write_layers(&opts.out_dir, &level, &resp, &emission, &out_opts)
+                    .map_err(|e| e.to_string())?,
+            );
+        }
+        if opts.cache {
+            let cache_path = opts.out_dir.join(format!("{}.flatbake", level.name));
+            let cache = crate::cache::Cache::new(
+                &level,
+                resp,
+                &report,
+                inputs.image_hash.clone(),
+                inputs.key.clone(),
+                &out_opts,
+            );
+            let bytes = cache
+                .to_bytes()
+                .map_err(|e| format!("cannot encode the cache {}: {e}", cache_path.display()))?;
+            output::write_file_atomic(&cache_path, &bytes).map_err(|e| e.to_string())?;
+            written.push(cache_path);
+        }
+    }
     report.outputs = written
         .iter()
         .filter_map(|p| p.file_name())
         .map(|n| n.to_string_lossy().into_owned())
         .collect();
+    if opts.layers || opts.cache {
+        list_extra_outputs(&opts.out_dir, &level.name, &report.outputs)?;
+    }
+    crate::stamp::write(path, opts, &inputs, &report.outputs)?;
     Ok(report)
+}
+
+/// The report is written before the layers and the cache (it comes from
+/// [`output::write_level_outputs`]); list those files in it too, so that
+/// scripts find every output in `NAME.report.json`.
+fn list_extra_outputs(dir: &Path, name: &str, outputs: &[String]) -> Result<(), String> {
+    let path = dir.join(output::OutputKind::Report.file_name(name));
+    let text = std::fs::read(&path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let mut written: Report = serde_json::from_slice(&text)
+        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    written.outputs = outputs.to_vec();
+    let mut json = serde_json::to_vec_pretty(&written).map_err(|e| e.to_string())?;
+    json.push(b'\n');
+    output::write_file_atomic(&path, &json).map_err(|e| e.to_string())
 }

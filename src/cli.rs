@@ -47,6 +47,76 @@ pub enum Command {
     Palette(PaletteArgs),
     /// Measure the price of accuracy: bake at every preset, time it, compare to reference.
     Sweep(SweepArgs),
+    /// New lightmaps for new emission from a `bake --cache` file, without baking again.
+    Relight(RelightArgs),
+    /// Bake every level in a folder, then re-bake each level whenever it or its palette is saved.
+    Watch(WatchArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct RelightArgs {
+    /// The cache written by `flatbake bake --cache` (NAME.flatbake).
+    pub cache: PathBuf,
+    /// New emission of an emitter colour: "#rrggbb=R,G,B" or "#rrggbb=X" (repeatable).
+    #[arg(long, value_name = "COLOR=R,G,B")]
+    pub emission: Vec<String>,
+    /// Output folder.
+    #[arg(short = 'o', long = "out", default_value = "out")]
+    pub out: PathBuf,
+    /// Refuse the cache unless it was baked from this level image.
+    #[arg(long, value_name = "FILE")]
+    pub level: Option<PathBuf>,
+    /// Also write the light layers with the new emission.
+    #[arg(long)]
+    pub layers: bool,
+    /// Also write NAME.lightmap.exr.
+    #[arg(long)]
+    pub hdr: bool,
+    /// Print only errors.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct WatchArgs {
+    /// Folder of level images (and their palettes).
+    pub dir: PathBuf,
+    /// Output folder.
+    #[arg(short = 'o', long = "out", default_value = "out")]
+    pub out: PathBuf,
+    /// Accuracy preset (draft is the quick preview while painting).
+    #[arg(short, long, value_enum, default_value_t = Quality::Normal)]
+    pub quality: Quality,
+    /// Light falloff: half-energy distance in pixels (overrides the palette).
+    #[arg(long, value_name = "PIXELS")]
+    pub falloff: Option<f64>,
+    /// Palette for every level (instead of the lookup beside each level).
+    #[arg(long, value_name = "FILE")]
+    pub palette: Option<PathBuf>,
+    /// Also write NAME.lightmap.exr.
+    #[arg(long)]
+    pub hdr: bool,
+    /// Also write NAME.lightmap.rgbm.png.
+    #[arg(long)]
+    pub rgbm: bool,
+    /// Also write light layers.
+    #[arg(long)]
+    pub layers: bool,
+    /// Also write the relight cache.
+    #[arg(long)]
+    pub cache: bool,
+    /// Bits per channel of the PNG outputs.
+    #[arg(long, value_name = "BITS", default_value_t = 8, value_parser = parse_depth)]
+    pub depth: u8,
+    /// Multiply the PNG lightmaps by this (overrides the palette).
+    #[arg(long, value_name = "X")]
+    pub exposure: Option<f64>,
+    /// Quiet time after the last save before baking, in milliseconds.
+    #[arg(long, value_name = "MS", default_value_t = 300)]
+    pub debounce: u64,
+    /// Worker threads (default: all cores).
+    #[arg(short, long, value_name = "N")]
+    pub jobs: Option<usize>,
 }
 
 #[derive(Args, Debug)]
@@ -109,6 +179,15 @@ pub struct BakeArgs {
     /// Print only errors.
     #[arg(long)]
     pub quiet: bool,
+    /// Also write one lightmap per light group (NAME.layer-GROUP.exr/.png, NAME.layers.json).
+    #[arg(long)]
+    pub layers: bool,
+    /// Also write NAME.flatbake, the cache `flatbake relight` reads.
+    #[arg(long)]
+    pub cache: bool,
+    /// Bake levels even when their outputs are up to date.
+    #[arg(long)]
+    pub force: bool,
 }
 
 fn parse_depth(s: &str) -> Result<u8, String> {
@@ -154,6 +233,8 @@ pub fn run(cli: Cli) -> u8 {
         Command::Bake(args) => bake(&args),
         Command::Palette(args) => palette(&args),
         Command::Sweep(args) => sweep(&args),
+        Command::Relight(args) => relight(&args),
+        Command::Watch(args) => watch(&args),
     }
 }
 
@@ -241,6 +322,9 @@ pub fn batch_options(a: &BakeArgs) -> Result<BatchOptions, String> {
         limits: LoadLimits {
             max_pixels: a.max_pixels,
         },
+        layers: a.layers,
+        cache: a.cache,
+        force: a.force,
     })
 }
 
@@ -277,15 +361,125 @@ fn bake(a: &BakeArgs) -> u8 {
         .iter()
         .filter(|o| matches!(o, LevelOutcome::Failed { .. }))
         .count();
+    let current = outcomes
+        .iter()
+        .filter(|o| matches!(o, LevelOutcome::UpToDate { .. }))
+        .count();
     if !a.quiet {
-        let baked = outcomes.len() - failed;
+        let baked = outcomes.len() - failed - current;
         eprintln!(
-            "flatbake: {baked} level{} baked into {}, {failed} failed",
+            "flatbake: {baked} level{} baked into {}, {current} up to date, {failed} failed",
             if baked == 1 { "" } else { "s" },
             a.out.display()
         );
     }
     if failed > 0 { EXIT_FAILED } else { EXIT_OK }
+}
+
+fn relight(a: &RelightArgs) -> u8 {
+    let mut emission = Vec::new();
+    for e in &a.emission {
+        match crate::cache::parse_emission(e) {
+            Ok(v) => emission.push(v),
+            Err(msg) => {
+                eprintln!("flatbake: {msg}");
+                return EXIT_USAGE;
+            }
+        }
+    }
+    let opts = crate::cache::RelightOptions {
+        out_dir: a.out.clone(),
+        emission,
+        level_image: a.level.clone(),
+        layers: a.layers,
+        hdr: a.hdr,
+    };
+    match crate::cache::relight(&a.cache, &opts) {
+        Ok(report) => {
+            if !a.quiet {
+                eprintln!(
+                    "relit {} in {:.3} s into {} ({} files)",
+                    a.cache.display(),
+                    report.timings.total,
+                    a.out.display(),
+                    report.outputs.len()
+                );
+            }
+            EXIT_OK
+        }
+        Err(e) => {
+            eprintln!("flatbake: {e}");
+            EXIT_FAILED
+        }
+    }
+}
+
+fn watch(a: &WatchArgs) -> u8 {
+    let bake_args = BakeArgs {
+        paths: vec![a.dir.clone()],
+        out: a.out.clone(),
+        quality: a.quality,
+        falloff: a.falloff,
+        kernel: KernelArg::Flatland,
+        gather: GatherMethod::Fast,
+        palette: a.palette.clone(),
+        bounces: None,
+        hdr: a.hdr,
+        rgbm: a.rgbm,
+        depth: a.depth,
+        exposure: a.exposure,
+        jobs: a.jobs,
+        max_pixels: LoadLimits::default().max_pixels,
+        quiet: false,
+        layers: a.layers,
+        cache: a.cache,
+        force: false,
+    };
+    let batch = match batch_options(&bake_args) {
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("flatbake: {e}");
+            return EXIT_USAGE;
+        }
+    };
+    let opts = crate::watch::WatchOptions {
+        dir: a.dir.clone(),
+        batch,
+        debounce: Duration::from_millis(a.debounce),
+    };
+    // Runs until the process is interrupted (Ctrl-C ends it).
+    let stop = std::sync::atomic::AtomicBool::new(false);
+    let result = with_jobs(a.jobs, || {
+        crate::watch::run(&opts, &stop, &mut |ev| match ev {
+            crate::watch::WatchEvent::Watching { dir } => {
+                eprintln!("watching {} (Ctrl-C stops)", dir.display())
+            }
+            crate::watch::WatchEvent::WatchError(e) => eprintln!("watch error: {e}"),
+            crate::watch::WatchEvent::Level(o) => eprintln!("{}", outcome_line(&o)),
+        })
+    });
+    match result {
+        Ok(Ok(())) => EXIT_OK,
+        Ok(Err(e)) | Err(e) => {
+            eprintln!("flatbake: {e}");
+            EXIT_FAILED
+        }
+    }
+}
+
+/// One line about a level's outcome, as watch prints it.
+fn outcome_line(o: &LevelOutcome) -> String {
+    match o {
+        LevelOutcome::Baked { path, report } => format!(
+            "baked {} in {:.2} s ({}): {}",
+            path.display(),
+            report.timings.total,
+            report.quality,
+            report.summary()
+        ),
+        LevelOutcome::Failed { error, .. } => format!("error: {error}"),
+        LevelOutcome::UpToDate { path } => format!("up to date: {}", path.display()),
+    }
 }
 
 fn palette(a: &PaletteArgs) -> u8 {
@@ -472,6 +666,13 @@ impl Observer for Progress {
                 }
             }
             LevelOutcome::Failed { error, .. } => self.println(format!("error: {error}"), true),
+            LevelOutcome::UpToDate { path } => self.println(
+                format!(
+                    "up to date: {} (same image, palette and settings; --force bakes it again)",
+                    path.display()
+                ),
+                false,
+            ),
         }
     }
 }

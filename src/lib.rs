@@ -15,10 +15,12 @@
 
 pub mod bake;
 pub mod batch;
+pub mod cache;
 pub mod cli;
 pub mod gather;
 pub mod geometry;
 pub mod kernel;
+pub mod layers;
 pub mod legend;
 pub mod level;
 pub mod material;
@@ -28,7 +30,9 @@ pub mod paper;
 pub mod quality;
 pub mod report;
 pub mod solve;
+pub mod stamp;
 pub mod sweep;
 pub mod synth;
 pub mod transport;
 pub mod visibility;
+pub mod watch;

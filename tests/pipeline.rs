@@ -1,0 +1,618 @@
+//! The game pipeline (issue 7): light layers add up to the full lightmap,
+//! relighting a cache equals a fresh bake with the new emission, caches of
+//! another version, level or a damaged file are refused, unchanged batches
+//! are skipped (and `--force` bakes), and watch mode bakes again after a
+//! save and survives a broken level.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc;
+use std::time::Duration;
+
+use flatbake::bake::{self, Settings};
+use flatbake::batch::{BatchOptions, LevelOutcome};
+use flatbake::layers;
+use flatbake::level::Level;
+use flatbake::output::read_lightmap_exr;
+use flatbake::palette::Palette;
+use flatbake::quality::Quality;
+use flatbake::watch::{self, WatchEvent, WatchOptions};
+
+const BIN: &str = env!("CARGO_BIN_EXE_flatbake");
+
+/// Colours of the test level.
+const WALL: [u8; 3] = [0x80, 0x80, 0x80];
+const RED: [u8; 3] = [0xc0, 0x20, 0x20];
+const LAMP: [u8; 3] = [0xff, 0xff, 0xff];
+const TORCH: [u8; 3] = [0xff, 0xa0, 0x00];
+const DARK: [u8; 3] = [0x00, 0xff, 0xff];
+const FLOOR: [u8; 3] = [0xb0, 0xa0, 0x90];
+
+/// A 48 x 32 room: grey border, a red (colour-reflecting) wall, a pillar
+/// that casts shadows, and three emitters: a white lamp, an orange torch
+/// and a cyan light that the palette leaves off.
+fn level_pixels() -> image::RgbaImage {
+    let (w, h) = (48u32, 32u32);
+    image::RgbaImage::from_fn(w, h, |x, y| {
+        let c = if x == 0 || y == 0 || x == w - 1 || y == h - 1 {
+            if y == 0 && (10..16).contains(&x) {
+                LAMP
+            } else if x == w - 1 && (20..24).contains(&y) {
+                TORCH
+            } else if y == h - 1 && (30..34).contains(&x) {
+                DARK
+            } else if x == 0 {
+                RED
+            } else {
+                WALL
+            }
+        } else if (20..24).contains(&x) && (10..18).contains(&y) {
+            WALL
+        } else {
+            FLOOR
+        };
+        image::Rgba([c[0], c[1], c[2], 255])
+    })
+}
+
+/// The palette text with the given emissions and an optional falloff.
+fn palette_text(lamp: [f64; 3], torch: [f64; 3], dark: [f64; 3], falloff: Option<f64>) -> String {
+    let f = |v: [f64; 3]| format!("[{:?}, {:?}, {:?}]", v[0], v[1], v[2]);
+    let mut s = String::new();
+    if let Some(d) = falloff {
+        s += &format!("[bake]\nfalloff = {d:?}\n\n");
+    }
+    s += "[[wall]]\ncolor = \"#808080\"\nreflectance = 0.5\n\n";
+    s += "[[wall]]\ncolor = \"#c02020\"\nreflectance = [0.7, 0.2, 0.1]\n\n";
+    s += &format!(
+        "[[emitter]]\ncolor = \"#ffffff\"\nemission = {}\nreflectance = 0.3\ngroup = \"lamps\"\n\n",
+        f(lamp)
+    );
+    s += &format!(
+        "[[emitter]]\ncolor = \"#ffa000\"\nemission = {}\nreflectance = 0.2\n\n",
+        f(torch)
+    );
+    s += &format!("[[emitter]]\ncolor = \"#00ffff\"\nemission = {}\n", f(dark));
+    s
+}
+
+const LAMP_E: [f64; 3] = [3.0, 3.0, 3.0];
+const TORCH_E: [f64; 3] = [4.0, 2.0, 0.5];
+
+fn default_palette() -> String {
+    palette_text(LAMP_E, TORCH_E, [0.0; 3], None)
+}
+
+/// Writes `NAME.png` and `NAME.palette.toml` into `dir`; returns the image path.
+fn write_level(dir: &Path, name: &str, palette: &str) -> PathBuf {
+    let png = dir.join(format!("{name}.png"));
+    level_pixels().save(&png).expect("write level png");
+    std::fs::write(dir.join(format!("{name}.palette.toml")), palette).expect("write palette");
+    png
+}
+
+fn resolved(palette: &str) -> Level {
+    let pal = Palette::parse(palette, Path::new("test.palette.toml")).expect("palette parses");
+    let img = level_pixels();
+    let px: Vec<[u8; 4]> = img.pixels().map(|p| p.0).collect();
+    Level::from_rgba(
+        "room",
+        img.width() as usize,
+        img.height() as usize,
+        &px,
+        &pal,
+    )
+}
+
+fn run(args: &[&str]) -> Output {
+    Command::new(BIN).args(args).output().expect("run flatbake")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+/// Largest absolute difference, and the largest value of `a`.
+fn max_diff(a: &[[f32; 3]], b: &[[f32; 3]]) -> (f64, f64) {
+    assert_eq!(a.len(), b.len());
+    let mut d: f64 = 0.0;
+    let mut m: f64 = 0.0;
+    for (p, q) in a.iter().zip(b) {
+        for c in 0..3 {
+            d = d.max((p[c] as f64 - q[c] as f64).abs());
+            m = m.max(p[c] as f64);
+        }
+    }
+    (d, m)
+}
+
+fn settings(falloff: Option<f64>) -> Settings {
+    let mut s = Settings::new(Quality::Normal);
+    s.falloff = falloff;
+    s.responses = true;
+    s
+}
+
+#[test]
+fn layers_sum_to_the_full_lightmap() {
+    for falloff in [None, Some(12.0)] {
+        let level = resolved(&palette_text(LAMP_E, TORCH_E, [0.0; 3], falloff));
+        let baked = bake::bake(&level, &settings(falloff), &|_| {}).expect("bakes");
+        let r = baked.responses.as_ref().expect("responses asked for");
+        let groups = layers::groups(&level, r);
+        let names: Vec<&str> = groups.iter().map(|g| g.name.as_str()).collect();
+        assert_eq!(names, ["lamps", "ffa000", "00ffff"], "falloff {falloff:?}");
+        let e = layers::palette_emission(&level, r);
+        let mut sum = vec![[0f32; 3]; level.width * level.height];
+        for g in &groups {
+            let l = layers::layer(r, &e, g);
+            for (s, v) in sum.iter_mut().zip(&l.rgb) {
+                for c in 0..3 {
+                    s[c] += v[c];
+                }
+            }
+        }
+        let (d, m) = max_diff(&baked.lightmap.rgb, &sum);
+        eprintln!("layers, falloff {falloff:?}: max error {d:e} of max {m}");
+        assert!(m > 0.1, "the level is lit");
+        // Linear up to the solver tolerance (1e-6) and float rounding.
+        assert!(
+            d <= 1e-4 * m,
+            "falloff {falloff:?}: layers differ by {d} (max {m})"
+        );
+        // The layered lightmap is the plain bake's, up to the positivity
+        // limiter on patch slopes acting on each emitter's light alone.
+        let mut plain = settings(falloff);
+        plain.responses = false;
+        let direct = bake::bake(&level, &plain, &|_| {}).expect("bakes");
+        let (dp, _) = max_diff(&direct.lightmap.rgb, &baked.lightmap.rgb);
+        eprintln!("layered vs plain bake, falloff {falloff:?}: max difference {dp:e}");
+        assert!(
+            dp <= 5e-3 * m,
+            "layered bake differs from a plain one by {dp}"
+        );
+        // The lamp layer alone is not the whole picture: the torch adds light.
+        let lamp = layers::layer(r, &e, &groups[0]);
+        assert!(max_diff(&baked.lightmap.rgb, &lamp.rgb).0 > 0.01 * m);
+    }
+}
+
+#[test]
+fn bake_layers_writes_files_that_add_up() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let png = write_level(dir.path(), "room", &default_palette());
+    let out = dir.path().join("out");
+    let o = run(&["bake", s(&png), "-o", s(&out), "--layers", "--quiet"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let manifest: layers::Manifest = serde_json::from_slice(
+        &std::fs::read(out.join("room.layers.json")).expect("manifest written"),
+    )
+    .expect("manifest parses");
+    assert_eq!(manifest.groups.len(), 3);
+    let report: flatbake::report::Report =
+        serde_json::from_slice(&std::fs::read(out.join("room.report.json")).expect("report"))
+            .expect("report parses");
+    for f in [
+        "room.layers.json",
+        "room.layer-lamps.exr",
+        "room.report.json",
+    ] {
+        assert!(
+            report.outputs.iter().any(|o| o == f),
+            "{f} in {:?}",
+            report.outputs
+        );
+    }
+    assert_eq!(manifest.groups[0].name, "lamps");
+    assert_eq!(manifest.groups[1].emitters[0].emission, TORCH_E);
+    let (_, _, full) = read_lightmap_exr(&out.join(&manifest.lightmap_exr)).expect("full exr");
+    let mut sum = vec![[0f32; 3]; full.len()];
+    for g in &manifest.groups {
+        assert!(out.join(&g.png).is_file(), "{} written", g.png);
+        let (_, _, l) = read_lightmap_exr(&out.join(&g.exr)).expect("layer exr");
+        for (s, v) in sum.iter_mut().zip(&l) {
+            for c in 0..3 {
+                s[c] += v[c];
+            }
+        }
+    }
+    let (d, m) = max_diff(&full, &sum);
+    assert!(
+        m > 0.1 && d <= 1e-4 * m,
+        "layer files differ by {d} (max {m})"
+    );
+}
+
+/// Relighting with new emission equals baking the level with that emission
+/// in its palette — including an emitter the palette had switched off.
+#[test]
+fn relight_equals_a_fresh_bake_with_the_new_emission() {
+    let new_lamp = [0.5, 1.0, 6.0];
+    let new_dark = [0.0, 2.0, 2.0];
+    for falloff in [None, Some(12.0)] {
+        let level = resolved(&palette_text(LAMP_E, TORCH_E, [0.0; 3], falloff));
+        let baked = bake::bake(&level, &settings(falloff), &|_| {}).expect("bakes");
+        let r = baked.responses.expect("responses");
+        let relit = r.combine(&[new_lamp, TORCH_E, new_dark]);
+
+        let fresh_level = resolved(&palette_text(new_lamp, TORCH_E, new_dark, falloff));
+        let mut s = settings(falloff);
+        s.responses = false;
+        let fresh = bake::bake(&fresh_level, &s, &|_| {}).expect("bakes");
+        let (d, m) = max_diff(&fresh.lightmap.rgb, &relit);
+        // Without falloff nothing is culled: equal up to the solver
+        // tolerance. With falloff each bake culls pairs whose light is below
+        // reach_bound x its brightest emission; the two bakes cull different
+        // pairs, so allow ten such pairs per pixel (measured: about 1.3).
+        let e_max = 6.0;
+        let tol = match falloff {
+            None => 1e-4 * m,
+            Some(_) => 1e-4 * m + 10.0 * Quality::Normal.knobs().reach_bound * e_max,
+        };
+        eprintln!(
+            "relight, falloff {falloff:?}: max error {d:e} of max {m}; culled pairs {}",
+            fresh.report.counts.culled_pairs
+        );
+        assert!(m > 0.1, "the level is lit");
+        assert!(
+            d <= tol,
+            "falloff {falloff:?}: relit differs by {d} (tol {tol}, max {m})"
+        );
+        // A relight is exactly what a layered bake with the new emission
+        // writes: both are sums of per-emitter light, and with falloff both
+        // cull the same pairs (chosen for unit emission, whatever the palette).
+        let layered = bake::bake(&fresh_level, &settings(falloff), &|_| {}).expect("bakes");
+        let (dl, _) = max_diff(&layered.lightmap.rgb, &relit);
+        let tol_layered = 1e-5 * m;
+        eprintln!("relight vs layered bake, falloff {falloff:?}: max error {dl:e}");
+        assert!(
+            dl <= tol_layered,
+            "relit differs from a layered bake by {dl}"
+        );
+        // And it is not simply the old lightmap.
+        assert!(max_diff(&baked.lightmap.rgb, &relit).0 > 0.05 * m);
+    }
+}
+
+/// The same through the command line and the cache file.
+#[test]
+fn relight_command_equals_bake_command() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let png = write_level(dir.path(), "room", &default_palette());
+    let out = dir.path().join("out");
+    let o = run(&["bake", s(&png), "-o", s(&out), "--cache", "--quiet"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let cache = out.join("room.flatbake");
+    assert!(cache.is_file());
+
+    let relit = dir.path().join("relit");
+    let o = run(&[
+        "relight",
+        s(&cache),
+        "--emission",
+        "#ffa000=1,5,9",
+        "--emission",
+        "#00FFFF=2",
+        "--hdr",
+        "--level",
+        s(&png),
+        "-o",
+        s(&relit),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(relit.join("room.lightmap.png").is_file());
+    let report: flatbake::report::Report =
+        serde_json::from_slice(&std::fs::read(relit.join("room.report.json")).expect("report"))
+            .expect("report parses");
+    assert_eq!(report.solver, "relight");
+    assert_eq!(report.timings.form_factors, 0.0);
+
+    let fresh_dir = tempfile::tempdir().expect("tempdir");
+    let png2 = write_level(
+        fresh_dir.path(),
+        "room",
+        &palette_text(LAMP_E, [1.0, 5.0, 9.0], [2.0; 3], None),
+    );
+    let fresh = fresh_dir.path().join("out");
+    let o = run(&["bake", s(&png2), "-o", s(&fresh), "--hdr", "--quiet"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (_, _, a) = read_lightmap_exr(&fresh.join("room.lightmap.exr")).expect("fresh exr");
+    let (_, _, b) = read_lightmap_exr(&relit.join("room.lightmap.exr")).expect("relit exr");
+    let (d, m) = max_diff(&a, &b);
+    assert!(m > 0.1 && d <= 1e-4 * m, "relight differs by {d} (max {m})");
+}
+
+#[test]
+fn relight_refuses_other_versions_levels_and_damaged_files() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let png = write_level(dir.path(), "room", &default_palette());
+    let out = dir.path().join("out");
+    let o = run(&["bake", s(&png), "-o", s(&out), "--cache", "--quiet"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let cache = out.join("room.flatbake");
+    let bytes = std::fs::read(&cache).expect("cache");
+    let relight = |file: &Path, extra: &[&str]| {
+        let mut args = vec!["relight", s(file), "-o", s(&out)];
+        args.extend_from_slice(extra);
+        run(&args)
+    };
+
+    // Not a cache at all.
+    let o = relight(&png, &[]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("is not a flatbake cache"),
+        "{}",
+        stderr(&o)
+    );
+
+    // Another flatbake version: same layout, other version string.
+    let version = env!("CARGO_PKG_VERSION").as_bytes();
+    let at = 16 + 8;
+    assert_eq!(&bytes[at..at + version.len()], version);
+    let mut other = bytes.clone();
+    other[at] = if other[at] == b'9' { b'8' } else { b'9' };
+    let f = dir.path().join("other-version.flatbake");
+    std::fs::write(&f, &other).expect("write");
+    let o = relight(&f, &[]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(
+        e.contains("was written by flatbake") && e.contains("bake the level again"),
+        "{e}"
+    );
+
+    // Damaged payload, and a truncated file.
+    let mut bad = bytes.clone();
+    let n = bad.len();
+    bad[n / 2] ^= 0x55;
+    let f = dir.path().join("damaged.flatbake");
+    std::fs::write(&f, &bad).expect("write");
+    let o = relight(&f, &[]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("damaged"), "{}", stderr(&o));
+    std::fs::write(&f, &bytes[..40]).expect("write");
+    let o = relight(&f, &[]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("damaged"), "{}", stderr(&o));
+
+    // Another level's image.
+    let other_png = dir.path().join("other.png");
+    let mut img = level_pixels();
+    img.put_pixel(5, 5, image::Rgba([0x80, 0x80, 0x80, 255]));
+    img.save(&other_png).expect("write");
+    let o = relight(&cache, &["--level", s(&other_png)]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("another image"), "{}", stderr(&o));
+
+    // A colour that is not an emitter of this level is named.
+    let o = relight(&cache, &["--emission", "#123456=1"]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(e.contains("#123456") && e.contains("#ffa000"), "{e}");
+    let o = relight(&cache, &["--emission", "#c02020=1"]);
+    assert!(stderr(&o).contains("is a wall"), "{}", stderr(&o));
+
+    // The genuine cache still works.
+    let o = relight(&cache, &["--emission", "#ffa000=1"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+#[test]
+fn unchanged_batch_skips_and_force_or_a_palette_change_bakes() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let png = write_level(dir.path(), "room", &default_palette());
+    let out = dir.path().join("out");
+    let bake = |extra: &[&str]| {
+        let mut args = vec!["bake", s(&png), "-o", s(&out)];
+        args.extend_from_slice(extra);
+        let o = run(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        stderr(&o)
+    };
+    let first = bake(&[]);
+    assert!(first.contains("1 level baked"), "{first}");
+    let lightmap = std::fs::read(out.join("room.lightmap.png")).expect("lightmap");
+
+    let again = bake(&[]);
+    assert!(
+        again.contains("up to date: ") && again.contains("0 levels baked"),
+        "{again}"
+    );
+    assert!(again.contains("1 up to date"), "{again}");
+
+    let forced = bake(&["--force"]);
+    assert!(forced.contains("1 level baked"), "{forced}");
+
+    // Another setting is another bake.
+    let other = bake(&["--exposure", "2"]);
+    assert!(other.contains("1 level baked"), "{other}");
+    let back = bake(&[]);
+    assert!(back.contains("1 level baked"), "{back}");
+
+    // A missing output is baked again.
+    std::fs::remove_file(out.join("room.lit.png")).expect("remove");
+    let missing = bake(&[]);
+    assert!(missing.contains("1 level baked"), "{missing}");
+    assert!(out.join("room.lit.png").is_file());
+
+    // A palette edit is baked again and changes the lightmap.
+    std::fs::write(
+        dir.path().join("room.palette.toml"),
+        palette_text([1.0; 3], TORCH_E, [0.0; 3], None),
+    )
+    .expect("write palette");
+    let edited = bake(&[]);
+    assert!(edited.contains("1 level baked"), "{edited}");
+    let relit = std::fs::read(out.join("room.lightmap.png")).expect("lightmap");
+    assert_ne!(lightmap, relit, "the palette edit shows");
+
+    // Same bytes written again (a touch): still up to date.
+    std::fs::write(
+        dir.path().join("room.palette.toml"),
+        palette_text([1.0; 3], TORCH_E, [0.0; 3], None),
+    )
+    .expect("write palette");
+    let touched = bake(&[]);
+    assert!(touched.contains("1 up to date"), "{touched}");
+}
+
+/// Waits up to 20 s for an event that `want` accepts, passing over others.
+fn wait_for(
+    rx: &mpsc::Receiver<WatchEvent>,
+    what: &str,
+    want: impl Fn(&WatchEvent) -> bool,
+) -> WatchEvent {
+    let deadline = std::time::Instant::now() + Duration::from_secs(20);
+    loop {
+        let left = deadline.saturating_duration_since(std::time::Instant::now());
+        match rx.recv_timeout(left) {
+            Ok(ev) if want(&ev) => return ev,
+            Ok(_) => continue,
+            Err(_) => panic!("no {what} within 20 s"),
+        }
+    }
+}
+
+#[test]
+fn watch_bakes_after_a_save_and_survives_a_broken_level() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let levels = dir.path().join("levels");
+    std::fs::create_dir(&levels).expect("mkdir");
+    let png = write_level(&levels, "room", &default_palette());
+    let out = dir.path().join("out");
+    let opts = WatchOptions {
+        dir: levels.clone(),
+        batch: BatchOptions {
+            out_dir: out.clone(),
+            quality: Quality::Draft,
+            ..BatchOptions::default()
+        },
+        debounce: Duration::from_millis(100),
+    };
+    let stop = AtomicBool::new(false);
+    let (tx, rx) = mpsc::channel();
+    let is_room = |p: &Path| p.file_name() == png.file_name();
+    std::thread::scope(|scope| {
+        let handle = scope.spawn(|| watch::run(&opts, &stop, &mut |ev| drop(tx.send(ev))));
+        let first = wait_for(&rx, "first bake", |e| matches!(e, WatchEvent::Level(_)));
+        assert!(
+            matches!(&first, WatchEvent::Level(LevelOutcome::Baked { path, .. }) if is_room(path)),
+            "{first:?}"
+        );
+        wait_for(&rx, "watching", |e| {
+            matches!(e, WatchEvent::Watching { .. })
+        });
+        let before = std::fs::read(out.join("room.lightmap.png")).expect("baked");
+
+        // A broken palette: the level fails, the watcher goes on.
+        std::fs::write(levels.join("room.palette.toml"), "[[wall]\ncolor = ").expect("write");
+        let failed = wait_for(&rx, "failed bake", |e| {
+            matches!(e, WatchEvent::Level(LevelOutcome::Failed { .. }))
+        });
+        let WatchEvent::Level(LevelOutcome::Failed { error, .. }) = failed else {
+            unreachable!()
+        };
+        assert!(error.contains("room.palette.toml"), "{error}");
+
+        // Fixed with brighter light: baked again, and the output changes.
+        std::fs::write(
+            levels.join("room.palette.toml"),
+            palette_text([8.0; 3], TORCH_E, [0.0; 3], None),
+        )
+        .expect("write");
+        wait_for(
+            &rx,
+            "bake after the fix",
+            |e| matches!(e, WatchEvent::Level(LevelOutcome::Baked { path, .. }) if is_room(path)),
+        );
+        let after = std::fs::read(out.join("room.lightmap.png")).expect("baked");
+        assert_ne!(before, after, "the new palette shows in the lightmap");
+
+        // A new level painted into the folder is baked too.
+        level_pixels()
+            .save(levels.join("second.png"))
+            .expect("write");
+        wait_for(&rx, "bake of a new level", |e| {
+            matches!(e, WatchEvent::Level(LevelOutcome::Baked { path, .. })
+                if path.file_name().is_some_and(|n| n == "second.png"))
+        });
+
+        stop.store(true, Ordering::Relaxed);
+        let r = handle.join().expect("watch thread");
+        assert!(r.is_ok(), "{r:?}");
+    });
+}
+
+#[test]
+fn watch_maps_files_to_levels() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let a = write_level(dir.path(), "a", &default_palette());
+    let b = write_level(dir.path(), "b", &default_palette());
+    std::fs::write(dir.path().join("a.lightmap.png"), b"not a level").expect("write");
+    let d = dir.path();
+    assert_eq!(watch::affected_levels(d, &d.join("a.png")), vec![a.clone()]);
+    assert_eq!(
+        watch::affected_levels(d, &d.join("b.palette.toml")),
+        vec![b.clone()]
+    );
+    assert_eq!(
+        watch::affected_levels(d, &d.join("palette.toml")),
+        vec![a, b]
+    );
+    assert!(watch::affected_levels(d, &d.join("a.lightmap.png")).is_empty());
+    assert!(watch::affected_levels(d, &d.join(".flatbake-x.tmp")).is_empty());
+}
+
+/// Polls up to 20 s for `f` to hold.
+fn eventually(what: &str, f: impl Fn() -> bool) {
+    let deadline = std::time::Instant::now() + Duration::from_secs(20);
+    while !f() {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "no {what} within 20 s"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// The `watch` command end to end: first bake, then a bake after a save.
+#[test]
+fn watch_command_bakes_and_rebakes() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let levels = dir.path().join("levels");
+    std::fs::create_dir(&levels).expect("mkdir");
+    write_level(&levels, "room", &default_palette());
+    let out = dir.path().join("out");
+    let mut child = Command::new(BIN)
+        .args(["watch", s(&levels), "-o", s(&out), "-q", "draft"])
+        .args(["--debounce", "100"])
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("start flatbake watch");
+    let stamp = out.join("room.stamp.json");
+    let result = std::panic::catch_unwind(|| {
+        eventually("first bake", || stamp.is_file());
+        let first = std::fs::read(&stamp).expect("stamp");
+        // Watching starts before the first bake, so this save is seen.
+        std::fs::write(
+            levels.join("room.palette.toml"),
+            palette_text([9.0; 3], TORCH_E, [0.0; 3], None),
+        )
+        .expect("write");
+        eventually("bake after the save", || {
+            std::fs::read(&stamp).is_ok_and(|now| now != first)
+        });
+    });
+    // Stop the watcher this test started, whatever happened.
+    let _ = child.kill();
+    let _ = child.wait();
+    if let Err(e) = result {
+        std::panic::resume_unwind(e);
+    }
+}
