@@ -42,6 +42,11 @@ pub struct Settings {
     /// Also compute the light of each emitter material on its own
     /// ([`Responses`]), for light layers and the relight cache.
     pub responses: bool,
+    /// Skip nothing: solve every channel on its own, solve the bounce even
+    /// where nothing reflects or sees light, gather every floor region and
+    /// cull no faint pairs. The full computation that every skip is tested
+    /// against; results agree with the default up to each skip's bound.
+    pub exhaustive: bool,
 }
 
 impl Settings {
@@ -55,6 +60,7 @@ impl Settings {
             bounces: None,
             naive_samples: 8,
             responses: false,
+            exhaustive: false,
         }
     }
 }
@@ -236,6 +242,12 @@ pub fn bake(
         })
     };
     let falloff = settings.falloff.map(Falloff::new);
+    // The exhaustive bake culls no faint pairs.
+    let reach_bound = if settings.exhaustive {
+        0.0
+    } else {
+        settings.knobs.reach_bound
+    };
 
     progress("geometry");
     let t = Instant::now();
@@ -275,7 +287,14 @@ pub fn bake(
         );
     }
 
-    let plan = plan_channels(level, &used);
+    let plan = if settings.exhaustive {
+        ChannelPlan {
+            class_of: [Some(0), Some(1), Some(2)],
+            classes: vec![0, 1, 2],
+        }
+    } else {
+        plan_channels(level, &used)
+    };
     for c in 0..3 {
         if plan.class_of[c].is_none() {
             skip(
@@ -313,8 +332,9 @@ pub fn bake(
         .classes
         .iter()
         .any(|&c| rho[c].iter().any(|&r| r > 0.0));
-    let mut need_bounce = !plan.classes.is_empty() && any_reflects && np > 0;
-    if !plan.classes.is_empty() && !any_reflects {
+    let mut need_bounce =
+        !plan.classes.is_empty() && (any_reflects || settings.exhaustive) && np > 0;
+    if !plan.classes.is_empty() && !any_reflects && !settings.exhaustive {
         skip(&mut skipped, "bounce", "no wall reflects".into());
     }
     if need_bounce && settings.bounces == Some(0) {
@@ -367,13 +387,7 @@ pub fn bake(
             Kernel::Flatland => {
                 // Factors below the preset's bound are not computed (falloff only).
                 let lens: Vec<f64> = edges.iter().map(|e| e.len()).collect();
-                let reach = Reach::new(
-                    &lens,
-                    &vec![1.0; edges.len()],
-                    falloff,
-                    0.5,
-                    settings.knobs.reach_bound,
-                );
+                let reach = Reach::new(&lens, &vec![1.0; edges.len()], falloff, 0.5, reach_bound);
                 let (ff, points, stats) = transport::form_factors(
                     &geometry,
                     &patches,
@@ -398,7 +412,7 @@ pub fn bake(
         let (lit, resp_lit) = lit;
         resp_bounce &= resp_lit;
         // Reflecting patches that see no emitter receive nothing: no bounce.
-        if need_bounce && !lit {
+        if need_bounce && !lit && !settings.exhaustive {
             skip(
                 &mut skipped,
                 "bounce",
@@ -577,9 +591,9 @@ pub fn bake(
     // exactly the bake of that emission. Each culled pair still stays below
     // reach_bound x its emitter's emission.
     let (reach_comps, reach_threshold) = if resp_b.is_empty() {
-        (0..kk, settings.knobs.reach_bound * e_max)
+        (0..kk, reach_bound * e_max)
     } else {
-        (k_main..kk, settings.knobs.reach_bound * traced_emission)
+        (k_main..kk, reach_bound * traced_emission)
     };
     let reach = {
         let bmax: Vec<f64> = (0..edges.len())
@@ -614,7 +628,9 @@ pub fn bake(
     }
     let (reached, unreached): (Vec<[i32; 2]>, Vec<[i32; 2]>) = floor_pixels.iter().partition(|p| {
         kk > 0
-            && lit_comp[geometry.components[p[1] as usize * level.width + p[0] as usize] as usize]
+            && (settings.exhaustive
+                || lit_comp
+                    [geometry.components[p[1] as usize * level.width + p[0] as usize] as usize])
     });
     if !unreached.is_empty() && kk > 0 {
         skip(
@@ -671,7 +687,7 @@ pub fn bake(
             "falloff reach",
             format!(
                 "{culled_pairs} edge-point pairs whose light would be below {:e} of the brightest emission",
-                settings.knobs.reach_bound
+                reach_bound
             ),
         );
     }

@@ -223,3 +223,45 @@ fn sweep_writes_the_csv_the_table_and_the_plot() {
     let png = image::open(dir.path().join("sweep/accuracy.png")).expect("plot is an image");
     assert!(png.width() >= 640 && png.height() >= 400);
 }
+
+#[test]
+fn palette_bounces_and_the_flag_switch_off_the_bounce_and_say_so() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    write_room(dir.path(), "room");
+    let report = |out: &str| -> serde_json::Value {
+        let text =
+            std::fs::read_to_string(dir.path().join(out).join("room.report.json")).expect("report");
+        serde_json::from_str(&text).expect("JSON")
+    };
+    // The flag: direct light only, no solve, reported and summarised.
+    let o = flatbake(
+        &["bake", "room.png", "-o", "flag", "--bounces", "0"],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let r = report("flag");
+    assert_eq!(r["solves"], 0);
+    assert_eq!(r["bounces"], 0);
+    assert!(
+        r["skipped"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|s| s["effect"] == "bounce"),
+        "{r}"
+    );
+    assert!(stderr(&o).contains("bounces = 0"), "{}", stderr(&o));
+    // The palette's [bake] bounces does the same.
+    let pal = std::fs::read_to_string(dir.path().join("room.palette.toml")).expect("palette");
+    std::fs::write(
+        dir.path().join("room.palette.toml"),
+        format!("[bake]\nbounces = 0\n\n{pal}"),
+    )
+    .expect("write");
+    let o = flatbake(&["bake", "room.png", "-o", "palette"], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(report("palette")["solves"], 0);
+    let a = std::fs::read(dir.path().join("flag/room.lightmap.png")).expect("read");
+    let b = std::fs::read(dir.path().join("palette/room.lightmap.png")).expect("read");
+    assert!(a == b, "flag and palette give the same lightmap");
+}
