@@ -133,6 +133,13 @@ pub fn pixel_light(
 ) -> u64 {
     let k = rad.components;
     let mut culled = 0;
+    // Scratch for reflected_span, initialised once per point, not per span.
+    let mut scratch = Scratch {
+        t: [0.0; BATCH + 1],
+        f: [0.0; BATCH + 1],
+        l: [0.0; BATCH + 1],
+        pts: [0; BATCH],
+    };
     for span in spans {
         let ei = span.edge as usize;
         let e = &edges[ei];
@@ -161,7 +168,7 @@ pub fn pixel_light(
             }
         }
         if rad.edge_reflects[ei] {
-            reflected_span(patches, rad, edges, span, &line, foot, acc);
+            reflected_span(patches, rad, edges, span, &line, foot, acc, &mut scratch);
         }
     }
     culled
@@ -170,11 +177,20 @@ pub fn pixel_light(
 /// Patches of one visible span handled per batch of [`reflected_span`].
 const BATCH: usize = 32;
 
+/// Buffers of [`reflected_span`]: piece end offsets, antiderivatives, patches.
+struct Scratch {
+    t: [f64; BATCH + 1],
+    f: [f64; BATCH + 1],
+    l: [f64; BATCH + 1],
+    pts: [usize; BATCH],
+}
+
 /// Adds the reflected light (`B - E`, linear along each patch) of the
 /// patches under `span`. The pieces are the same as
 /// [`Patches::for_each_piece`]'s; their end offsets are collected in batches
 /// and the antiderivatives evaluated in tight loops
 /// ([`GatherLine::at_many`]), each piece boundary once.
+#[allow(clippy::too_many_arguments)]
 fn reflected_span(
     patches: &Patches,
     rad: &Radiosity,
@@ -183,6 +199,7 @@ fn reflected_span(
     line: &GatherLine,
     foot: f64,
     acc: &mut [f64],
+    scratch: &mut Scratch,
 ) {
     let k = rad.components;
     let ei = span.edge as usize;
@@ -191,10 +208,7 @@ fn reflected_span(
     let first = patches.first[ei] as usize;
     let n = patches.first[ei + 1] as usize - first;
     // t[0] is the start of the batch (the end of the previous one).
-    let mut t = [0.0; BATCH + 1];
-    let mut f = [0.0; BATCH + 1];
-    let mut l = [0.0; BATCH + 1];
-    let mut pts = [0usize; BATCH];
+    let Scratch { t, f, l, pts } = scratch;
     let mut flush = |t: &[f64], pts: &[usize], fresh: usize, f: &mut [f64], l: &mut [f64]| {
         let m = pts.len();
         line.at_many(&t[fresh..=m], &mut f[fresh..=m], &mut l[fresh..=m]);
@@ -226,7 +240,7 @@ fn reflected_span(
             t[m + 1] = end - foot;
             m += 1;
             if m == BATCH {
-                flush(&t, &pts[..m], fresh, &mut f, &mut l);
+                flush(t, &pts[..m], fresh, f, l);
                 t[0] = t[m];
                 f[0] = f[m];
                 l[0] = l[m];
@@ -241,7 +255,7 @@ fn reflected_span(
         }
     }
     if m > 0 {
-        flush(&t, &pts[..m], fresh, &mut f, &mut l);
+        flush(t, &pts[..m], fresh, f, l);
     }
 }
 

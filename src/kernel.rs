@@ -128,7 +128,7 @@ impl Reach {
 pub fn atan(x: f64) -> f64 {
     use std::f64::consts::{FRAC_PI_2, FRAC_PI_4};
     // tan(3 pi / 8), and the low bits of pi/2 that FRAC_PI_2 drops.
-    const T3P8: f64 = 2.414_213_562_373_095_1;
+    const T3P8: f64 = 2.414_213_562_373_095;
     const MOREBITS: f64 = 6.123_233_995_736_766e-17;
     const P: [f64; 5] = [
         -8.750_608_600_031_904e-1,
@@ -414,7 +414,7 @@ mod tests {
             check(x);
             check(-x);
         }
-        for x in [0.0, 0.66, 2.414_213_562_373_095_1, 1e300, f64::INFINITY] {
+        for x in [0.0, 0.66, 2.414_213_562_373_095, 1e300, f64::INFINITY] {
             check(x);
         }
         assert_eq!(atan(-0.0).to_bits(), (-0.0f64).to_bits());

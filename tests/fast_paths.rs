@@ -2,6 +2,8 @@
 //! kernel against the plain per-patch sum with the library's `atan`, and the
 //! sweep's reuse of the previous query's event order against fresh sweeps.
 
+#![allow(clippy::needless_range_loop)]
+
 mod common;
 use common::*;
 
