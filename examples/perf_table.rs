@@ -34,6 +34,8 @@ use flatbake::synth::{self, Painted};
 
 struct Run {
     wall: f64,
+    /// User + system CPU seconds of the process (less sensitive to load).
+    cpu: Option<f64>,
     peak_mb: Option<f64>,
     report: serde_json::Value,
 }
@@ -63,7 +65,7 @@ fn bake_process(dir: &Path, level: &Painted, quality: &str) -> anyhow::Result<Ru
     let timed = Path::new("/usr/bin/time").exists();
     let mut cmd = if timed {
         let mut c = Command::new("/usr/bin/time");
-        c.arg("-f").arg("PERF_TABLE %e %M").arg(&bin);
+        c.arg("-f").arg("PERF_TABLE %e %M %U %S").arg(&bin);
         c
     } else {
         Command::new(&bin)
@@ -82,6 +84,7 @@ fn bake_process(dir: &Path, level: &Painted, quality: &str) -> anyhow::Result<Ru
         );
     }
     let mut peak_mb = None;
+    let mut cpu = None;
     for line in String::from_utf8_lossy(&res.stderr).lines() {
         if let Some(rest) = line.strip_prefix("PERF_TABLE ") {
             let mut it = rest.split_whitespace();
@@ -92,6 +95,9 @@ fn bake_process(dir: &Path, level: &Painted, quality: &str) -> anyhow::Result<Ru
                 .next()
                 .and_then(|v| v.parse::<f64>().ok())
                 .map(|kb| kb / 1024.0);
+            let user = it.next().and_then(|v| v.parse::<f64>().ok());
+            let sys = it.next().and_then(|v| v.parse::<f64>().ok());
+            cpu = user.zip(sys).map(|(u, s)| u + s);
         }
     }
     let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(
@@ -99,6 +105,7 @@ fn bake_process(dir: &Path, level: &Painted, quality: &str) -> anyhow::Result<Ru
     )?)?;
     Ok(Run {
         wall,
+        cpu,
         peak_mb,
         report,
     })
@@ -114,15 +121,15 @@ fn count(r: &Run, name: &str) -> u64 {
 
 fn header() {
     println!(
-        "| level | px | edges | patches | geometry s | F s | solve s | gather s | bake s | process s | s / Mpx | peak MB |"
+        "| level | px | edges | patches | geometry s | F s | solve s | gather s | bake s | process s | CPU s | s / Mpx | peak MB |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
 }
 
 fn row(label: &str, size: usize, r: &Run) {
     let mpx = (size * size) as f64 / 1e6;
     println!(
-        "| {label} | {size}x{size} | {} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} | {:.2} | {} |",
+        "| {label} | {size}x{size} | {} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} | {} | {:.2} | {} |",
         count(r, "edges"),
         count(r, "patches"),
         stage(r, "geometry"),
@@ -131,6 +138,7 @@ fn row(label: &str, size: usize, r: &Run) {
         stage(r, "gather"),
         stage(r, "total"),
         r.wall,
+        r.cpu.map_or("n/a".into(), |c| format!("{c:.2}")),
         r.wall / mpx,
         r.peak_mb.map_or("n/a".into(), |m| format!("{m:.0}")),
     );
@@ -233,10 +241,11 @@ fn main() -> anyhow::Result<()> {
     for w in by_size.windows(2) {
         let (a, b) = (&w[0], &w[1]);
         println!(
-            "- {} -> {}: process x{:.2}, gather x{:.2}, F x{:.2}",
+            "- {} -> {}: process x{:.2}, CPU x{:.2}, gather x{:.2}, F x{:.2}",
             a.0,
             b.0,
             b.1.wall / a.1.wall,
+            b.1.cpu.unwrap_or(f64::NAN) / a.1.cpu.unwrap_or(f64::NAN),
             stage(&b.1, "gather") / stage(&a.1, "gather"),
             stage(&b.1, "form_factors") / stage(&a.1, "form_factors").max(1e-9),
         );
@@ -256,10 +265,11 @@ fn main() -> anyhow::Result<()> {
     }
     let (first, last) = (&by_edges[0], &by_edges[by_edges.len() - 1]);
     println!(
-        "\nEdges x{:.1}: gather x{:.2}, process x{:.2}",
+        "\nEdges x{:.1}: gather x{:.2}, process x{:.2}, CPU x{:.2}",
         count(last, "edges") as f64 / count(first, "edges") as f64,
         stage(last, "gather") / stage(first, "gather"),
-        last.wall / first.wall
+        last.wall / first.wall,
+        last.cpu.unwrap_or(f64::NAN) / first.cpu.unwrap_or(f64::NAN)
     );
 
     println!("\n### Patch count (512 px, 60 obstacles)\n");
