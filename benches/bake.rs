@@ -114,5 +114,10 @@ fn naive_vs_fast(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, naive_vs_fast, sizes, edges, patches);
+criterion_group! {
+    name = benches;
+    // No plots: plotters needs system fonts, which build machines may lack.
+    config = Criterion::default().without_plots();
+    targets = naive_vs_fast, sizes, edges, patches
+}
 criterion_main!(benches);

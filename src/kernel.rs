@@ -124,7 +124,7 @@ impl Reach {
 /// reduced to `|x| <= 0.66` with `atan(x) = pi/2 - atan(1/x)` or
 /// `pi/4 + atan((x - 1) / (x + 1))`, then a degree 4/5 rational function in
 /// `x^2`. No table and no slow path.
-#[inline]
+#[inline(always)]
 pub fn atan(x: f64) -> f64 {
     use std::f64::consts::{FRAC_PI_2, FRAC_PI_4};
     // tan(3 pi / 8), and the low bits of pi/2 that FRAC_PI_2 drops.
@@ -234,6 +234,25 @@ impl GatherLine {
     /// calls, in loops without branches that the compiler can vectorise.
     #[inline]
     pub fn at_many(&self, t: &[f64], f: &mut [f64], l: &mut [f64]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2 (checked just above).
+            return unsafe { self.at_many_avx2(t, f, l) };
+        }
+        self.at_many_plain(t, f, l)
+    }
+
+    /// [`GatherLine::at_many`] compiled for AVX2: four lanes instead of two.
+    /// The same operations in the same order (no fused multiply-add), so the
+    /// same bits as the plain version.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn at_many_avx2(&self, t: &[f64], f: &mut [f64], l: &mut [f64]) {
+        self.at_many_plain(t, f, l)
+    }
+
+    #[inline(always)]
+    fn at_many_plain(&self, t: &[f64], f: &mut [f64], l: &mut [f64]) {
         let (f, l) = (&mut f[..t.len()], &mut l[..t.len()]);
         let d = self.d;
         match self.fall {
