@@ -133,6 +133,13 @@ pub fn pixel_light(
 ) -> u64 {
     let k = rad.components;
     let mut culled = 0;
+    // Scratch for reflected_span, initialised once per point, not per span.
+    let mut scratch = Scratch {
+        t: [0.0; BATCH + 1],
+        f: [0.0; BATCH + 1],
+        l: [0.0; BATCH + 1],
+        pts: [0; BATCH],
+    };
     for span in spans {
         let ei = span.edge as usize;
         let e = &edges[ei];
@@ -161,28 +168,95 @@ pub fn pixel_light(
             }
         }
         if rad.edge_reflects[ei] {
-            let (lo, _) = e.extent();
-            let h = patches.step[ei];
-            let first = patches.first[ei] as usize;
-            let mut prev: Option<(f64, f64, f64)> = None;
-            patches.for_each_piece(edges, span, |pt, a, b| {
-                let (fa, la) = match prev {
-                    Some((s, v, l)) if s == a => (v, l),
-                    _ => (line.at(a - foot), line.at_linear(a - foot)),
-                };
-                let (fb, lb) = (line.at(b - foot), line.at_linear(b - foot));
-                prev = Some((b, fb, lb));
-                let (g0, g1) = ((fb - fa) / TAU, (lb - la) / TAU);
-                // Patch centre, to express B(s) = r + slope (s - mid) in t = s - foot.
-                let mid = lo + ((pt - first) as f64 + 0.5) * h;
-                for c in 0..k {
-                    let g = rad.slope[pt * k + c];
-                    acc[c] += (rad.reflected[pt * k + c] + g * (foot - mid)) * g0 + g * g1;
-                }
-            });
+            reflected_span(patches, rad, edges, span, &line, foot, acc, &mut scratch);
         }
     }
     culled
+}
+
+/// Patches of one visible span handled per batch of [`reflected_span`].
+const BATCH: usize = 32;
+
+/// Buffers of [`reflected_span`]: piece end offsets, antiderivatives, patches.
+struct Scratch {
+    t: [f64; BATCH + 1],
+    f: [f64; BATCH + 1],
+    l: [f64; BATCH + 1],
+    pts: [usize; BATCH],
+}
+
+/// Adds the reflected light (`B - E`, linear along each patch) of the
+/// patches under `span`. The pieces are the same as
+/// [`Patches::for_each_piece`]'s; their end offsets are collected in batches
+/// and the antiderivatives evaluated in tight loops
+/// ([`GatherLine::at_many`]), each piece boundary once.
+#[allow(clippy::too_many_arguments)]
+fn reflected_span(
+    patches: &Patches,
+    rad: &Radiosity,
+    edges: &[Edge],
+    span: &Span,
+    line: &GatherLine,
+    foot: f64,
+    acc: &mut [f64],
+    scratch: &mut Scratch,
+) {
+    let k = rad.components;
+    let ei = span.edge as usize;
+    let (lo, _) = edges[ei].extent();
+    let h = patches.step[ei];
+    let first = patches.first[ei] as usize;
+    let n = patches.first[ei + 1] as usize - first;
+    // t[0] is the start of the batch (the end of the previous one).
+    let Scratch { t, f, l, pts } = scratch;
+    let mut flush = |t: &[f64], pts: &[usize], fresh: usize, f: &mut [f64], l: &mut [f64]| {
+        let m = pts.len();
+        line.at_many(&t[fresh..=m], &mut f[fresh..=m], &mut l[fresh..=m]);
+        for j in 0..m {
+            let pt = pts[j];
+            let (g0, g1) = ((f[j + 1] - f[j]) / TAU, (l[j + 1] - l[j]) / TAU);
+            // Patch centre, to express B(s) = r + slope (s - mid) in t = s - foot.
+            let mid = lo + ((pt - first) as f64 + 0.5) * h;
+            for c in 0..k {
+                let g = rad.slope[pt * k + c];
+                acc[c] += (rad.reflected[pt * k + c] + g * (foot - mid)) * g0 + g * g1;
+            }
+        }
+    };
+    t[0] = span.s0 - foot;
+    let mut m = 0;
+    // The first batch evaluates its start offset too; later ones carry it.
+    let mut fresh = 0;
+    let mut a = span.s0;
+    let mut kk = (((span.s0 - lo) / h).floor().max(0.0) as usize).min(n - 1);
+    loop {
+        let end = if kk + 1 == n {
+            span.s1
+        } else {
+            (lo + (kk + 1) as f64 * h).min(span.s1)
+        };
+        if end > a {
+            pts[m] = first + kk;
+            t[m + 1] = end - foot;
+            m += 1;
+            if m == BATCH {
+                flush(t, &pts[..m], fresh, f, l);
+                t[0] = t[m];
+                f[0] = f[m];
+                l[0] = l[m];
+                m = 0;
+                fresh = 1;
+            }
+        }
+        a = end;
+        kk += 1;
+        if kk >= n || a >= span.s1 {
+            break;
+        }
+    }
+    if m > 0 {
+        flush(t, &pts[..m], fresh, f, l);
+    }
 }
 
 /// Equation 5 of the paper for the patches of one visible span: each patch
@@ -256,7 +330,15 @@ pub fn gather(
         reach,
         Some(&lit),
         &|i, spans| {
-            let mut acc = vec![0.0; k];
+            // Bakes have at most three channels: no allocation per pixel.
+            let mut small = [0.0; 3];
+            let mut big = Vec::new();
+            let acc = if k <= 3 {
+                &mut small[..k]
+            } else {
+                big.resize(k, 0.0);
+                &mut big[..]
+            };
             let c = pixel_light(
                 &geometry.edges,
                 patches,
@@ -266,12 +348,12 @@ pub fn gather(
                 reach,
                 pos[i],
                 spans,
-                &mut acc,
+                acc,
             );
             if c > 0 {
                 culled.fetch_add(c, std::sync::atomic::Ordering::Relaxed);
             }
-            for (c, v) in acc.into_iter().enumerate() {
+            for (c, &v) in acc.iter().enumerate() {
                 // SAFETY: each pixel index is visited exactly once.
                 unsafe { shared.write(i * k + c, v) };
             }

@@ -126,6 +126,72 @@ impl Reach {
     }
 }
 
+/// `atan(x)`, within a few ulps of `f64::atan`, at a fraction of the cost
+/// of the C library's (which the gather called hundreds of millions of times
+/// on big levels: a quarter of the bake). Cephes' `atan`: the argument is
+/// reduced to `|x| <= 0.66` with `atan(x) = pi/2 - atan(1/x)` or
+/// `pi/4 + atan((x - 1) / (x + 1))`, then a degree 4/5 rational function in
+/// `x^2`. No table and no slow path.
+#[inline(always)]
+pub fn atan(x: f64) -> f64 {
+    use std::f64::consts::{FRAC_PI_2, FRAC_PI_4};
+    // tan(3 pi / 8), and the low bits of pi/2 that FRAC_PI_2 drops.
+    const T3P8: f64 = 2.414_213_562_373_095;
+    const MOREBITS: f64 = 6.123_233_995_736_766e-17;
+    const P: [f64; 5] = [
+        -8.750_608_600_031_904e-1,
+        -1.615_753_718_733_365e1,
+        -7.500_855_792_314_705e1,
+        -1.228_866_684_490_136_2e2,
+        -6.485_021_904_942_025e1,
+    ];
+    const Q: [f64; 5] = [
+        2.485_846_490_142_306_3e1,
+        1.650_270_098_316_988_6e2,
+        4.328_810_604_912_903e2,
+        4.853_903_996_359_137e2,
+        1.945_506_571_482_614e2,
+    ];
+    let a = x.abs();
+    // One division for all three cases, selects instead of branches (so a
+    // loop of these vectorises).
+    let (big, mid) = (a > T3P8, a > 0.66);
+    let num = if big {
+        -1.0
+    } else if mid {
+        a - 1.0
+    } else {
+        a
+    };
+    let den = if big {
+        a
+    } else if mid {
+        a + 1.0
+    } else {
+        1.0
+    };
+    let base = if big {
+        FRAC_PI_2
+    } else if mid {
+        FRAC_PI_4
+    } else {
+        0.0
+    };
+    let low = if big {
+        MOREBITS
+    } else if mid {
+        0.5 * MOREBITS
+    } else {
+        0.0
+    };
+    let r = num / den;
+    let z = r * r;
+    let p = (((P[0] * z + P[1]) * z + P[2]) * z + P[3]) * z + P[4];
+    let q = ((((z + Q[0]) * z + Q[1]) * z + Q[2]) * z + Q[3]) * z + Q[4];
+    let y = base + ((r * (z * p / q) + r) + low);
+    y.copysign(x)
+}
+
 /// The antiderivatives of the gather integrands along a line at distance `d`:
 /// `F(t)` of `w d psi` (uniform radiosity) and `T(t)` of `t w d psi` (the
 /// linear part of a patch's radiosity; `integral t w d psi = d/2 ln(r^2 / (A + r^2))`,
@@ -153,10 +219,10 @@ impl GatherLine {
     /// Antiderivative at offset `t` from the foot.
     #[inline]
     pub fn at(&self, t: f64) -> f64 {
-        let psi = (t / self.d).atan();
+        let psi = atan(t / self.d);
         match self.fall {
             None => psi,
-            Some((k, c)) => psi - k * (t / c).atan(),
+            Some((k, c)) => psi - k * atan(t / c),
         }
     }
 
@@ -168,6 +234,52 @@ impl GatherLine {
             None => 0.5 * self.d * r2.ln(),
             // A + r^2 = c^2 + t^2, with c^2 = A + d^2.
             Some((_, c)) => 0.5 * self.d * (r2 / (c * c + t * t)).ln(),
+        }
+    }
+
+    /// [`GatherLine::at`] and [`GatherLine::at_linear`] at every offset of
+    /// `t`, into `f` and `l` (same lengths). The same numbers as the scalar
+    /// calls, in loops without branches that the compiler can vectorise.
+    #[inline]
+    pub fn at_many(&self, t: &[f64], f: &mut [f64], l: &mut [f64]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2 (checked just above).
+            return unsafe { self.at_many_avx2(t, f, l) };
+        }
+        self.at_many_plain(t, f, l)
+    }
+
+    /// [`GatherLine::at_many`] compiled for AVX2: four lanes instead of two.
+    /// The same operations in the same order (no fused multiply-add), so the
+    /// same bits as the plain version.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn at_many_avx2(&self, t: &[f64], f: &mut [f64], l: &mut [f64]) {
+        self.at_many_plain(t, f, l)
+    }
+
+    #[inline(always)]
+    fn at_many_plain(&self, t: &[f64], f: &mut [f64], l: &mut [f64]) {
+        let (f, l) = (&mut f[..t.len()], &mut l[..t.len()]);
+        let d = self.d;
+        match self.fall {
+            None => {
+                for (f, &t) in f.iter_mut().zip(t) {
+                    *f = atan(t / d);
+                }
+                for (l, &t) in l.iter_mut().zip(t) {
+                    *l = 0.5 * d * (d * d + t * t).ln();
+                }
+            }
+            Some((k, c)) => {
+                for (f, &t) in f.iter_mut().zip(t) {
+                    *f = atan(t / d) - k * atan(t / c);
+                }
+                for (l, &t) in l.iter_mut().zip(t) {
+                    *l = 0.5 * d * ((d * d + t * t) / (c * c + t * t)).ln();
+                }
+            }
         }
     }
 
@@ -217,7 +329,7 @@ impl FactorLine {
             None => (s, u),
             Some((_, sa, c, k1, k2)) => (
                 s - k1 * (sa * s / c).atanh(),
-                u - k2 * (sa * u / self.d).atan(),
+                u - k2 * atan(sa * u / self.d),
             ),
         };
         0.5 * (self.alpha * ps - self.beta * qu)
@@ -309,6 +421,33 @@ mod tests {
             .map(|i| p0 + (i as f64 + 0.5) * h)
             .map(|psi| f(psi, d / psi.cos()) * h)
             .sum()
+    }
+
+    #[test]
+    fn fast_atan_matches_the_library_atan() {
+        let mut worst: f64 = 0.0;
+        let mut check = |x: f64| {
+            let (a, b) = (atan(x), x.atan());
+            let err = (a - b).abs() / b.abs().max(f64::MIN_POSITIVE);
+            worst = worst.max(err);
+            assert!(err <= 4.0 * f64::EPSILON, "atan({x}) = {a}, library {b}");
+        };
+        for i in 0..=200_000 {
+            let t = i as f64 / 200_000.0;
+            // Dense in [-4, 4] (all three reductions and their seams) ...
+            check(8.0 * t - 4.0);
+            // ... and log-spaced from 1e-12 to 1e12, both signs.
+            let x = 10f64.powf(24.0 * t - 12.0);
+            check(x);
+            check(-x);
+        }
+        for x in [0.0, 0.66, 2.414_213_562_373_095, 1e300, f64::INFINITY] {
+            check(x);
+        }
+        assert_eq!(atan(-0.0).to_bits(), (-0.0f64).to_bits());
+        assert!(atan(f64::NAN).is_nan());
+        assert_eq!(atan(f64::NEG_INFINITY), -std::f64::consts::FRAC_PI_2);
+        eprintln!("worst relative error {:.2} ulp", worst / f64::EPSILON);
     }
 
     #[test]

@@ -121,6 +121,10 @@ struct Event {
     vertex: [f64; 2],
     piece: u32,
     insert: bool,
+    /// `edge * 4 + part * 2 + insert` (`part` 1 for the second half of an
+    /// edge split at the cut ray): breaks ties between equal keys the same
+    /// way whatever order the events were generated in.
+    id: u32,
 }
 
 /// Diamond pseudo-angle of direction `(u, v)`: `0` at `+u`, increasing
@@ -601,6 +605,19 @@ impl Blocks {
 pub struct Sweeper {
     pieces: Vec<Piece>,
     events: Vec<Event>,
+    /// The previous sweep's events in sorted order, by id; the next query
+    /// point is usually a neighbour, so listing its events in this order
+    /// first leaves the sort little to do.
+    order: Vec<u32>,
+    /// Per event id: `(generation, index in events)`.
+    slot: Vec<(u32, u32)>,
+    sorted: Vec<Event>,
+    keys: Vec<(f64, u32, u32)>,
+    sweep_generation: u32,
+    /// Per piece: its index in `active`, or `u32::MAX`.
+    at: Vec<u32>,
+    /// Pieces inserted at the current event key.
+    fresh: Vec<u32>,
     active: Vec<u32>,
     cover: Coverage,
     stack: Vec<(u8, u32, u32)>,
@@ -635,53 +652,92 @@ impl Sweeper {
             return;
         }
         for (id, pc) in self.pieces.iter().enumerate() {
+            let part = u32::from(id > 0 && self.pieces[id - 1].edge == pc.edge);
+            let base = pc.edge * 4 + part * 2;
             self.events.push(Event {
                 key: pc.ka,
                 vertex: pc.va,
                 piece: id as u32,
                 insert: true,
+                id: base + 1,
             });
             self.events.push(Event {
                 key: pc.kb,
                 vertex: pc.vb,
                 piece: id as u32,
                 insert: false,
+                id: base,
             });
         }
-        self.events.sort_unstable_by(|x, y| x.key.total_cmp(&y.key));
+        self.sort_events(edges.len());
         self.active.clear();
         let n = self.events.len();
         let mut i = 0;
         // The span under construction: (piece, start key, start vertex).
         let mut open: Option<(u32, f64, [f64; 2])> = None;
+        // Position of each piece in `active` (for O(1) removal).
+        self.at.clear();
+        self.at.resize(self.pieces.len(), u32::MAX);
+        // Nearest piece of the previous interval.
+        let mut current: Option<u32> = None;
         while i < n {
             let key = self.events[i].key;
             let vertex = self.events[i].vertex;
+            self.fresh.clear();
+            let mut lost_nearest = false;
             while i < n && self.events[i].key == key {
                 let ev = self.events[i];
                 if ev.insert {
+                    self.at[ev.piece as usize] = self.active.len() as u32;
                     self.active.push(ev.piece);
-                } else if let Some(pos) = self.active.iter().position(|&a| a == ev.piece) {
-                    self.active.swap_remove(pos);
+                    self.fresh.push(ev.piece);
+                } else {
+                    let pos = self.at[ev.piece as usize];
+                    if pos != u32::MAX {
+                        let pos = pos as usize;
+                        self.active.swap_remove(pos);
+                        if let Some(&moved) = self.active.get(pos) {
+                            self.at[moved as usize] = pos as u32;
+                        }
+                        self.at[ev.piece as usize] = u32::MAX;
+                        lost_nearest |= current == Some(ev.piece);
+                    }
                 }
                 i += 1;
             }
-            // Nearest active piece on the interval (key, next key).
+            // Nearest active piece on the interval (key, next key). Edges do
+            // not cross, so among pieces active on both sides of an event
+            // the nearer stays nearer: unless the nearest piece just ended,
+            // only the pieces that just started can take its place.
             let nearest = if i < n && !self.active.is_empty() {
                 let (du, dv) = diamond_dir(0.5 * (key + self.events[i].key));
                 let mut best = u32::MAX;
                 let mut best_t = f64::INFINITY;
-                for &a in &self.active {
+                let mut consider = |a: u32| {
                     let t = self.pieces[a as usize].t(du, dv);
                     if t < best_t || (t == best_t && a < best) {
                         best_t = t;
                         best = a;
+                    }
+                };
+                match current {
+                    Some(c) if !lost_nearest => {
+                        consider(c);
+                        for &a in &self.fresh {
+                            consider(a);
+                        }
+                    }
+                    _ => {
+                        for &a in &self.active {
+                            consider(a);
+                        }
                     }
                 }
                 Some(best)
             } else {
                 None
             };
+            current = nearest;
             if open.map(|o| o.0) != nearest {
                 if let Some((pc, k0, v0)) = open.take() {
                     self.emit(edges, p, pc, k0, v0, key, vertex, out);
@@ -692,6 +748,89 @@ impl Sweeper {
             }
         }
         debug_assert!(open.is_none(), "the last event closes every span");
+    }
+
+    /// Sorts `events` by key, ties by id: a total order, so the result does
+    /// not depend on the order they came in. They are first laid out in the
+    /// previous sweep's order (neighbouring points see nearly the same
+    /// angular order), which the stable sort, adaptive to runs, then only
+    /// has to patch up.
+    fn sort_events(&mut self, edges: usize) {
+        if self.slot.len() < edges * 4 {
+            self.slot = vec![(0, 0); edges * 4];
+            self.sweep_generation = 0;
+        }
+        self.sweep_generation = self.sweep_generation.wrapping_add(1);
+        if self.sweep_generation == 0 {
+            self.slot.fill((0, 0));
+            self.sweep_generation = 1;
+        }
+        let g = self.sweep_generation;
+        for (i, ev) in self.events.iter().enumerate() {
+            self.slot[ev.id as usize] = (g, i as u32);
+        }
+        // Sorted as compact (key, id, index) triples, then the events
+        // gathered once in that order.
+        let keys = &mut self.keys;
+        keys.clear();
+        for &id in &self.order {
+            if let Some(&(sg, i)) = self.slot.get(id as usize)
+                && sg == g
+            {
+                keys.push((self.events[i as usize].key, id, i));
+                // Taken: one generation back, never equal to `g` again soon.
+                self.slot[id as usize].0 = g.wrapping_sub(1);
+            }
+        }
+        for (i, ev) in self.events.iter().enumerate() {
+            if self.slot[ev.id as usize].0 == g {
+                keys.push((ev.key, ev.id, i as u32));
+            }
+        }
+        if keys.len() != self.events.len() {
+            // A repeated candidate gave two events one id: start afresh.
+            keys.clear();
+            keys.extend(
+                self.events
+                    .iter()
+                    .enumerate()
+                    .map(|(i, e)| (e.key, e.id, i as u32)),
+            );
+        }
+        let less = |x: &(f64, u32, u32), y: &(f64, u32, u32)| {
+            x.0.total_cmp(&y.0)
+                .then(x.1.cmp(&y.1))
+                .then(x.2.cmp(&y.2))
+                .is_lt()
+        };
+        // Insertion sort: linear in the number of events plus the number
+        // of pairs out of order, which is small between neighbours. Past a
+        // budget of moves, a general sort finishes the job.
+        let budget = 4 * keys.len() + 64;
+        let mut moves = 0;
+        let mut i = 1;
+        while i < keys.len() && moves <= budget {
+            let x = keys[i];
+            let mut j = i;
+            while j > 0 && less(&x, &keys[j - 1]) {
+                keys[j] = keys[j - 1];
+                j -= 1;
+            }
+            moves += i - j;
+            keys[j] = x;
+            i += 1;
+        }
+        if i < keys.len() {
+            keys.sort_unstable_by(|x, y| {
+                x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2))
+            });
+        }
+        self.order.clear();
+        self.order.extend(keys.iter().map(|k| k.1));
+        self.sorted.clear();
+        self.sorted
+            .extend(keys.iter().map(|k| self.events[k.2 as usize]));
+        std::mem::swap(&mut self.events, &mut self.sorted);
     }
 
     /// The same result as [`Sweeper::sweep`] over all edges within

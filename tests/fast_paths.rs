@@ -1,0 +1,193 @@
+//! The speed-ups of issue 5 change no answer: the batched reflected-light
+//! kernel against the plain per-patch sum with the library's `atan`, and the
+//! sweep's reuse of the previous query's event order against fresh sweeps.
+
+#![allow(clippy::needless_range_loop)]
+
+mod common;
+use common::*;
+
+use std::f64::consts::TAU;
+
+use flatbake::gather::{Kernel, Radiosity, pixel_light};
+use flatbake::geometry::trace;
+use flatbake::kernel::{Falloff, Reach};
+use flatbake::level::Level;
+use flatbake::transport::Patches;
+use flatbake::visibility::{Span, Sweeper, View};
+use proptest::prelude::*;
+
+fn level_strategy() -> impl Strategy<Value = Level> {
+    (4usize..28, 4usize..28, 0u8..4, any::<u64>()).prop_map(|(w, h, density, seed)| {
+        let mut s = seed | 1;
+        let rows: Vec<String> = (0..h)
+            .map(|_| {
+                (0..w)
+                    .map(|_| {
+                        s ^= s << 13;
+                        s ^= s >> 7;
+                        s ^= s << 17;
+                        match s % 32 {
+                            0 => '*',
+                            v if v < 2 + density as u64 * 2 => '#',
+                            _ => '.',
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        ascii(&refs(&rows), &[('#', wall(0.5)), ('*', light(4.0, 0.3))])
+    })
+}
+
+/// The gather kernel as it was before batching: per piece, library `atan`.
+fn reference_light(
+    edges: &[flatbake::geometry::Edge],
+    patches: &Patches,
+    rad: &Radiosity,
+    falloff: Option<Falloff>,
+    p: [f64; 2],
+    spans: &[Span],
+) -> Vec<f64> {
+    let k = rad.components;
+    let mut acc = vec![0.0; k];
+    for span in spans {
+        let ei = span.edge as usize;
+        let e = &edges[ei];
+        let d = e.front_distance(p);
+        let foot = if e.normal.is_vertical_edge() {
+            p[1]
+        } else {
+            p[0]
+        };
+        let (kf, c) = match falloff {
+            Some(f) => {
+                let a = f.radius_for_weight(0.5).powi(2);
+                let c = (a + d * d).sqrt();
+                (d / c, c)
+            }
+            None => (0.0, 1.0),
+        };
+        let big_f = |t: f64| (t / d).atan() - kf * (t / c).atan();
+        let big_t = |t: f64| {
+            let r2 = d * d + t * t;
+            if falloff.is_some() {
+                0.5 * d * (r2 / (c * c + t * t)).ln()
+            } else {
+                0.5 * d * r2.ln()
+            }
+        };
+        if rad.edge_emits[ei] {
+            let g = (big_f(span.s1 - foot) - big_f(span.s0 - foot)) / TAU;
+            for ch in 0..k {
+                acc[ch] += rad.edge_emission[ei * k + ch] * g;
+            }
+        }
+        if rad.edge_reflects[ei] {
+            let (lo, _) = e.extent();
+            let h = patches.step[ei];
+            let first = patches.first[ei] as usize;
+            patches.for_each_piece(edges, span, |pt, a, b| {
+                let g0 = (big_f(b - foot) - big_f(a - foot)) / TAU;
+                let g1 = (big_t(b - foot) - big_t(a - foot)) / TAU;
+                let mid = lo + ((pt - first) as f64 + 0.5) * h;
+                for ch in 0..k {
+                    let g = rad.slope[pt * k + ch];
+                    acc[ch] += (rad.reflected[pt * k + ch] + g * (foot - mid)) * g0 + g * g1;
+                }
+            });
+        }
+    }
+    acc
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(60))]
+
+    #[test]
+    fn batched_kernel_matches_the_per_patch_sum(
+        l in level_strategy(),
+        patch_len in prop_oneof![Just(0.25), Just(1.0), Just(4.0)],
+        fall in prop_oneof![Just(None), Just(Some(3.0)), Just(Some(40.0))],
+        seed in any::<u64>(),
+    ) {
+        let g = trace(&l);
+        let patches = Patches::new(&g, patch_len);
+        let n = patches.len();
+        // Arbitrary radiosity with slopes, two channels.
+        let mut s = seed | 1;
+        let mut next = || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s % 10_000) as f64 / 10_000.0
+        };
+        let b: Vec<Vec<f64>> = (0..2).map(|_| (0..n).map(|_| 5.0 * next()).collect()).collect();
+        let sl: Vec<Vec<f64>> = (0..2).map(|_| (0..n).map(|_| next() - 0.5).collect()).collect();
+        let e: Vec<Vec<f64>> = (0..2)
+            .map(|_| g.edges.iter().map(|ed| l.materials[ed.material as usize].emission[0]).collect())
+            .collect();
+        let rad = Radiosity::new(&patches, &b, &sl, &e);
+        let falloff = fall.map(Falloff::new);
+        let reach = Reach::unlimited(g.edges.len());
+        let all: Vec<u32> = (0..g.edges.len() as u32).collect();
+        let mut sw = Sweeper::new();
+        let mut spans = Vec::new();
+        for y in 0..l.height {
+            for x in 0..l.width {
+                let Some(comp) = g.component_at(x as i64, y as i64) else { continue };
+                let p = [x as f64 + 0.5, y as f64 + 0.5];
+                spans.clear();
+                sw.sweep(&g.edges, &all, p, View::Full, comp, &mut spans);
+                let mut acc = vec![0.0; 2];
+                pixel_light(&g.edges, &patches, &rad, falloff, Kernel::Flatland, &reach, p, &spans, &mut acc);
+                let want = reference_light(&g.edges, &patches, &rad, falloff, p, &spans);
+                for ch in 0..2 {
+                    prop_assert!(
+                        (acc[ch] - want[ch]).abs() <= 1e-12 * (1.0 + want[ch].abs()),
+                        "pixel ({}, {}) channel {}: {} vs {}", x, y, ch, acc[ch], want[ch]
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn sweeps_do_not_depend_on_the_previous_query(l in level_strategy(), seed in any::<u64>()) {
+        let g = trace(&l);
+        let all: Vec<u32> = (0..g.edges.len() as u32).collect();
+        let mut points = Vec::new();
+        for y in 0..l.height {
+            for x in 0..l.width {
+                if let Some(comp) = g.component_at(x as i64, y as i64) {
+                    points.push(([x as f64 + 0.5, y as f64 + 0.5], comp));
+                }
+            }
+        }
+        // Fresh sweeper per point, in scan order.
+        let fresh: Vec<Vec<Span>> = points
+            .iter()
+            .map(|&(p, comp)| {
+                let mut out = Vec::new();
+                Sweeper::new().sweep(&g.edges, &all, p, View::Full, comp, &mut out);
+                out
+            })
+            .collect();
+        // One sweeper reused over the points in a shuffled order.
+        let mut order: Vec<usize> = (0..points.len()).collect();
+        let mut s = seed | 1;
+        for i in (1..order.len()).rev() {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            order.swap(i, (s % (i as u64 + 1)) as usize);
+        }
+        let mut sw = Sweeper::new();
+        for &i in &order {
+            let (p, comp) = points[i];
+            let mut out = Vec::new();
+            sw.sweep(&g.edges, &all, p, View::Full, comp, &mut out);
+            prop_assert_eq!(&out, &fresh[i], "point {:?}", p);
+        }
+    }
+}
