@@ -54,13 +54,13 @@ impl Quality {
                 patch_len: 4.0,
                 quad: 3,
                 tolerance: 1e-6,
-                reach_bound: 1e-6,
+                reach_bound: 1e-5,
             },
             Quality::High => Knobs {
                 patch_len: 2.0,
                 quad: 4,
                 tolerance: 1e-8,
-                reach_bound: 1e-7,
+                reach_bound: 1e-6,
             },
             Quality::Reference => Knobs {
                 patch_len: 0.5,
