@@ -81,10 +81,20 @@ pub struct RelightArgs {
 pub struct WatchArgs {
     /// Folder of level images (and their palettes).
     pub dir: PathBuf,
+    #[command(flatten)]
+    pub output: OutputArgs,
+    /// Quiet time after the last save before baking, in milliseconds.
+    #[arg(long, value_name = "MS", default_value_t = 300)]
+    pub debounce: u64,
+}
+
+/// What to bake and write: the flags `bake` and `watch` share.
+#[derive(Args, Debug, Clone)]
+pub struct OutputArgs {
     /// Output folder.
     #[arg(short = 'o', long = "out", default_value = "out")]
     pub out: PathBuf,
-    /// Accuracy preset (draft is the quick preview while painting).
+    /// Accuracy preset: draft (preview while painting), normal (daily), high (shipping), reference (converged).
     #[arg(short, long, value_enum, default_value_t = Quality::Normal)]
     pub quality: Quality,
     /// Light falloff: half-energy distance in pixels (overrides the palette).
@@ -93,16 +103,16 @@ pub struct WatchArgs {
     /// Palette for every level (instead of the lookup beside each level).
     #[arg(long, value_name = "FILE")]
     pub palette: Option<PathBuf>,
-    /// Also write NAME.lightmap.exr.
+    /// Also write NAME.lightmap.exr (linear 32-bit float).
     #[arg(long)]
     pub hdr: bool,
-    /// Also write NAME.lightmap.rgbm.png.
+    /// Also write NAME.lightmap.rgbm.png (8-bit RGBM, range 6).
     #[arg(long)]
     pub rgbm: bool,
-    /// Also write light layers.
+    /// Also write one lightmap per light group (NAME.layer-GROUP.exr/.png, NAME.layers.json).
     #[arg(long)]
     pub layers: bool,
-    /// Also write the relight cache.
+    /// Also write NAME.flatbake, the cache `flatbake relight` reads.
     #[arg(long)]
     pub cache: bool,
     /// Bits per channel of the PNG outputs.
@@ -111,9 +121,6 @@ pub struct WatchArgs {
     /// Multiply the PNG lightmaps by this (overrides the palette).
     #[arg(long, value_name = "X")]
     pub exposure: Option<f64>,
-    /// Quiet time after the last save before baking, in milliseconds.
-    #[arg(long, value_name = "MS", default_value_t = 300)]
-    pub debounce: u64,
     /// Worker threads (default: all cores).
     #[arg(short, long, value_name = "N")]
     pub jobs: Option<usize>,
@@ -137,54 +144,23 @@ pub struct BakeArgs {
     /// Level images or folders of level images.
     #[arg(required = true)]
     pub paths: Vec<PathBuf>,
-    /// Output folder.
-    #[arg(short = 'o', long = "out", default_value = "out")]
-    pub out: PathBuf,
-    /// Accuracy preset: draft (preview), normal (daily), high (shipping), reference (converged).
-    #[arg(short, long, value_enum, default_value_t = Quality::Normal)]
-    pub quality: Quality,
-    /// Light falloff: half-energy distance in pixels (overrides the palette).
-    #[arg(long, value_name = "PIXELS")]
-    pub falloff: Option<f64>,
+    #[command(flatten)]
+    pub output: OutputArgs,
     /// Transport kernel: exact flatland radiosity, or the paper's equations 4-5.
     #[arg(long, value_enum, default_value_t = KernelArg::Flatland)]
     pub kernel: KernelArg,
     /// Floor gather: fast exact visibility, or the paper's naive ray tests (baseline).
     #[arg(long, value_enum, default_value_t = GatherMethod::Fast)]
     pub gather: GatherMethod,
-    /// Palette for every level (instead of the lookup beside each level).
-    #[arg(long, value_name = "FILE")]
-    pub palette: Option<PathBuf>,
     /// Truncate the bounce series: 0 = direct light only (overrides the palette).
     #[arg(long, value_name = "N")]
     pub bounces: Option<u32>,
-    /// Also write NAME.lightmap.exr (linear 32-bit float).
-    #[arg(long)]
-    pub hdr: bool,
-    /// Also write NAME.lightmap.rgbm.png (8-bit RGBM, range 6).
-    #[arg(long)]
-    pub rgbm: bool,
-    /// Bits per channel of the PNG outputs.
-    #[arg(long, value_name = "BITS", default_value_t = 8, value_parser = parse_depth)]
-    pub depth: u8,
-    /// Multiply the PNG lightmaps by this (overrides the palette).
-    #[arg(long, value_name = "X")]
-    pub exposure: Option<f64>,
-    /// Worker threads (default: all cores).
-    #[arg(short, long, value_name = "N")]
-    pub jobs: Option<usize>,
     /// Refuse images with more pixels than this (checked before decoding).
     #[arg(long, value_name = "N", default_value_t = LoadLimits::default().max_pixels)]
     pub max_pixels: u64,
     /// Print only errors.
     #[arg(long)]
     pub quiet: bool,
-    /// Also write one lightmap per light group (NAME.layer-GROUP.exr/.png, NAME.layers.json).
-    #[arg(long)]
-    pub layers: bool,
-    /// Also write NAME.flatbake, the cache `flatbake relight` reads.
-    #[arg(long)]
-    pub cache: bool,
     /// Bake levels even when their outputs are up to date.
     #[arg(long)]
     pub force: bool,
@@ -285,45 +261,46 @@ fn sweep(a: &SweepArgs) -> u8 {
 
 /// Checks flag values that clap cannot, and builds the library options.
 pub fn batch_options(a: &BakeArgs) -> Result<BatchOptions, String> {
-    if let Some(f) = a.falloff
+    let o = &a.output;
+    if let Some(f) = o.falloff
         && !(f.is_finite() && f > 0.0)
     {
         return Err(format!(
             "--falloff must be a positive number of pixels, not {f}"
         ));
     }
-    if let Some(x) = a.exposure
+    if let Some(x) = o.exposure
         && !(x.is_finite() && x > 0.0)
     {
         return Err(format!("--exposure must be a positive number, not {x}"));
     }
-    if a.jobs == Some(0) {
+    if o.jobs == Some(0) {
         return Err("--jobs must be at least 1".into());
     }
     Ok(BatchOptions {
-        out_dir: a.out.clone(),
-        quality: a.quality,
-        falloff: a.falloff,
+        out_dir: o.out.clone(),
+        quality: o.quality,
+        falloff: o.falloff,
         kernel: match a.kernel {
             KernelArg::Flatland => Kernel::Flatland,
             KernelArg::Paper => Kernel::Paper,
         },
         gather: a.gather,
-        palette: a.palette.clone(),
+        palette: o.palette.clone(),
         bounces: a.bounces,
-        exposure: a.exposure,
-        hdr: a.hdr,
-        depth: if a.depth == 16 {
+        exposure: o.exposure,
+        hdr: o.hdr,
+        depth: if o.depth == 16 {
             Depth::Sixteen
         } else {
             Depth::Eight
         },
-        rgbm: a.rgbm,
+        rgbm: o.rgbm,
         limits: LoadLimits {
             max_pixels: a.max_pixels,
         },
-        layers: a.layers,
-        cache: a.cache,
+        layers: o.layers,
+        cache: o.cache,
         force: a.force,
     })
 }
@@ -349,7 +326,7 @@ fn bake(a: &BakeArgs) -> u8 {
         }
     };
     let ui = Progress::new(a.quiet, batch::collect_levels(&a.paths).len());
-    let outcomes = match with_jobs(a.jobs, || batch::run(&a.paths, &opts, &ui)) {
+    let outcomes = match with_jobs(a.output.jobs, || batch::run(&a.paths, &opts, &ui)) {
         Ok(o) => o,
         Err(e) => {
             eprintln!("flatbake: {e}");
@@ -370,7 +347,7 @@ fn bake(a: &BakeArgs) -> u8 {
         eprintln!(
             "flatbake: {baked} level{} baked into {}, {current} up to date, {failed} failed",
             if baked == 1 { "" } else { "s" },
-            a.out.display()
+            a.output.out.display()
         );
     }
     if failed > 0 { EXIT_FAILED } else { EXIT_OK }
@@ -417,22 +394,12 @@ fn relight(a: &RelightArgs) -> u8 {
 fn watch(a: &WatchArgs) -> u8 {
     let bake_args = BakeArgs {
         paths: vec![a.dir.clone()],
-        out: a.out.clone(),
-        quality: a.quality,
-        falloff: a.falloff,
+        output: a.output.clone(),
         kernel: KernelArg::Flatland,
         gather: GatherMethod::Fast,
-        palette: a.palette.clone(),
         bounces: None,
-        hdr: a.hdr,
-        rgbm: a.rgbm,
-        depth: a.depth,
-        exposure: a.exposure,
-        jobs: a.jobs,
         max_pixels: LoadLimits::default().max_pixels,
         quiet: false,
-        layers: a.layers,
-        cache: a.cache,
         force: false,
     };
     let batch = match batch_options(&bake_args) {
@@ -449,7 +416,7 @@ fn watch(a: &WatchArgs) -> u8 {
     };
     // Runs until the process is interrupted (Ctrl-C ends it).
     let stop = std::sync::atomic::AtomicBool::new(false);
-    let result = with_jobs(a.jobs, || {
+    let result = with_jobs(a.output.jobs, || {
         crate::watch::run(&opts, &stop, &mut |ev| match ev {
             crate::watch::WatchEvent::Watching { dir } => {
                 eprintln!("watching {} (Ctrl-C stops)", dir.display())
