@@ -90,6 +90,8 @@ pub fn inputs(path: &Path, opts: &BatchOptions) -> Result<Inputs, String> {
     );
     h.update(b"\0settings\0");
     h.update(settings.as_bytes());
+    // The preset's knobs too: a build that changes a preset re-bakes.
+    h.update(format!("{:?}", opts.quality.knobs()).as_bytes());
     Ok(Inputs {
         image_hash,
         key: h.finalize().to_hex().to_string(),
