@@ -833,6 +833,20 @@ impl Sweeper {
         std::mem::swap(&mut self.events, &mut self.sorted);
     }
 
+    /// Adds edge `ei`'s visible pieces to the coverage, once per walk.
+    #[inline]
+    fn insert_edge(&mut self, q: &Query, edges: &[Edge], ei: u32) {
+        if self.stamp[ei as usize] == self.generation {
+            return;
+        }
+        self.stamp[ei as usize] = self.generation;
+        let from = self.pieces.len();
+        q.pieces(edges, ei, &mut self.pieces);
+        for pi in from..self.pieces.len() {
+            self.cover.insert(&self.pieces, pi as u32);
+        }
+    }
+
     /// The same result as [`Sweeper::sweep`] over all edges within
     /// `reach_max`, found by walking `blocks` from near to far and skipping
     /// what is already hidden. `seeds` are inserted first: the edges a nearby
@@ -863,15 +877,7 @@ impl Sweeper {
             self.generation = 1;
         }
         for &ei in seeds {
-            if self.stamp[ei as usize] == self.generation {
-                continue;
-            }
-            self.stamp[ei as usize] = self.generation;
-            let from = self.pieces.len();
-            q.pieces(edges, ei, &mut self.pieces);
-            for pi in from..self.pieces.len() {
-                self.cover.insert(&self.pieces, pi as u32);
-            }
+            self.insert_edge(&q, edges, ei);
         }
         let top = blocks.dims.len() - 1;
         self.stack.clear();
@@ -902,15 +908,7 @@ impl Sweeper {
             if level == 0 {
                 let b = y as usize * nx + x as usize;
                 for &ei in &blocks.list[blocks.start[b]..blocks.start[b + 1]] {
-                    if self.stamp[ei as usize] == self.generation {
-                        continue;
-                    }
-                    self.stamp[ei as usize] = self.generation;
-                    let from = self.pieces.len();
-                    q.pieces(edges, ei, &mut self.pieces);
-                    for pi in from..self.pieces.len() {
-                        self.cover.insert(&self.pieces, pi as u32);
-                    }
+                    self.insert_edge(&q, edges, ei);
                 }
                 continue;
             }
