@@ -941,24 +941,13 @@ impl Sweeper {
             if o == NONE {
                 continue;
             }
-            let pc = &self.pieces[o as usize];
-            let e = &edges[pc.edge as usize];
             let (k0, k1) = (cover.start(i), cover.iv[i].end);
-            let v0 = if i == 0 { pc.va } else { cover.iv[i - 1].vend };
-            let (a, b) = (
-                pc.axis_at(e, p, k0, v0),
-                pc.axis_at(e, p, k1, cover.iv[i].vend),
-            );
-            let (s0, s1) = if a <= b { (a, b) } else { (b, a) };
-            if s1 > s0 {
-                out.push(Span {
-                    edge: pc.edge,
-                    s0,
-                    s1,
-                    k0,
-                    k1,
-                });
-            }
+            let v0 = if i == 0 {
+                self.pieces[o as usize].va
+            } else {
+                cover.iv[i - 1].vend
+            };
+            self.emit(edges, p, o, k0, v0, k1, cover.iv[i].vend, out);
         }
     }
 
