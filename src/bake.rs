@@ -656,6 +656,8 @@ pub fn bake(
                     settings.kernel,
                     &reached,
                     &reach,
+                    reach_threshold,
+                    reach_comps.clone(),
                 );
                 culled_pairs += stats.culled_pairs;
                 unreached_in_reach = stats.unreached as usize;

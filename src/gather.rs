@@ -117,13 +117,165 @@ impl<'a, T> Disjoint<'a, T> {
     }
 }
 
+/// The reflected light of every edge as a binary tree over its patches, for
+/// gathering distant light in fewer pieces with a bounded error.
+///
+/// Level 0 is the patches themselves (`B - E`, linear along each patch).
+/// A node above covers up to `2^level` consecutive patches and holds the
+/// least-squares straight line through their piecewise-linear light, and
+/// `dev`, the largest distance between that line and the light it stands
+/// for (over the components that decide, at every patch end: the difference
+/// is linear along each patch).
+///
+/// Seen from a pixel, a node whose nearest visible point is at distance `r`
+/// may stand in for its patches when `dev * w(r) <= tolerance`: its error
+/// is then at most `tolerance` times the angle it covers over `2 pi`, so all
+/// the nodes a pixel gathers together err by at most `tolerance`, however
+/// many there are. Nodes far away (small `w`) and over smooth light (small
+/// `dev`) are taken whole; near ones are split down to the patches. With a
+/// tolerance of 0 only exactly linear runs merge.
+#[derive(Clone, Debug)]
+pub struct PatchTree {
+    k: usize,
+    /// Per node and component: the line's value at `mid`, and its slope.
+    mean: Vec<f64>,
+    slope: Vec<f64>,
+    /// Per node: centre on the edge's axis, and the squared distance from
+    /// which on it may stand in for its patches (`dev * w(r) <= tolerance`).
+    mid: Vec<f64>,
+    need: Vec<f64>,
+    /// Per edge: where each level's nodes start in the arrays, bottom (the
+    /// patches) to top (one node), and the end of the last level.
+    levels: Vec<Vec<u32>>,
+}
+
+impl PatchTree {
+    /// The tree of `rad`'s reflected light for gathering within `tolerance`
+    /// under `falloff`; deviations are measured over the components
+    /// `decide` (the others are carried along).
+    pub fn new(
+        edges: &[Edge],
+        patches: &Patches,
+        rad: &Radiosity,
+        decide: std::ops::Range<usize>,
+        falloff: Option<Falloff>,
+        tolerance: f64,
+    ) -> PatchTree {
+        let k = rad.components;
+        // dev * A / (A + r^2) <= tolerance  <=>  r^2 >= A (dev / tolerance - 1).
+        let need = |dev: f64| {
+            if dev == 0.0 {
+                0.0
+            } else if dev > tolerance {
+                falloff.map_or(f64::INFINITY, |f| {
+                    let r2 = f.a() * (dev / tolerance - 1.0);
+                    if r2.is_finite() { r2 } else { f64::INFINITY }
+                })
+            } else {
+                0.0
+            }
+        };
+        let mut t = PatchTree {
+            k,
+            mean: Vec::new(),
+            slope: Vec::new(),
+            mid: Vec::new(),
+            need: Vec::new(),
+            levels: Vec::with_capacity(edges.len()),
+        };
+        for (ei, e) in edges.iter().enumerate() {
+            let (lo, hi) = e.extent();
+            let h = patches.step[ei];
+            let range = patches.of_edge(ei);
+            let first = range.start;
+            let n = range.len();
+            let mut starts = vec![t.mid.len() as u32];
+            if !rad.edge_reflects[ei] {
+                // Never walked: one empty level keeps the indexing uniform.
+                starts.push(t.mid.len() as u32);
+                t.levels.push(starts);
+                continue;
+            }
+            // Level 0: the patches.
+            for j in 0..n {
+                let p = first + j;
+                t.mean.extend_from_slice(&rad.reflected[p * k..(p + 1) * k]);
+                t.slope.extend_from_slice(&rad.slope[p * k..(p + 1) * k]);
+                t.mid.push(lo + (j as f64 + 0.5) * h);
+                t.need.push(0.0);
+            }
+            let mut width = 1usize;
+            let mut count = n;
+            while count > 1 {
+                let below = *starts.last().expect("level 0 exists") as usize;
+                starts.push(t.mid.len() as u32);
+                width *= 2;
+                count = count.div_ceil(2);
+                for i in 0..count {
+                    let (a, b) = (i * width, ((i + 1) * width).min(n));
+                    let s0 = lo + a as f64 * h;
+                    let s1 = if b == n { hi } else { lo + b as f64 * h };
+                    let (len, mid) = (s1 - s0, 0.5 * (s0 + s1));
+                    // Moments of the children's lines equal the patches'
+                    // (a least-squares line keeps both): sum them.
+                    let kids = [below + 2 * i, below + 2 * i + 1];
+                    let kids = &kids[..if b - a > width / 2 { 2 } else { 1 }];
+                    for c in 0..k {
+                        let (mut m0, mut m1) = (0.0, 0.0);
+                        for &ch in kids {
+                            let cl = Self::child_len(lo, hi, h, n, width / 2, ch - below);
+                            m0 += t.mean[ch * k + c] * cl;
+                            m1 += t.slope[ch * k + c] * cl * cl * cl / 12.0
+                                + t.mean[ch * k + c] * cl * (t.mid[ch] - mid);
+                        }
+                        t.mean.push(m0 / len);
+                        t.slope.push(m1 * 12.0 / (len * len * len));
+                    }
+                    let node = t.mid.len();
+                    t.mid.push(mid);
+                    // Deviation at both ends of every patch under the node.
+                    let mut dev: f64 = 0.0;
+                    for j in a..b {
+                        let p = first + j;
+                        let pm = lo + (j as f64 + 0.5) * h;
+                        for c in decide.clone() {
+                            let (r, g) = (rad.reflected[p * k + c], rad.slope[p * k + c]);
+                            let (m, sl) = (t.mean[node * k + c], t.slope[node * k + c]);
+                            for s in [pm - 0.5 * h, pm + 0.5 * h] {
+                                let exact = r + g * (s - pm);
+                                let line = m + sl * (s - mid);
+                                dev = dev.max((exact - line).abs());
+                            }
+                        }
+                    }
+                    // Rounding in the fit is far below any tolerance in use,
+                    // but keep the bound an upper bound.
+                    t.need.push(need(dev * (1.0 + 1e-12)) * (1.0 + 1e-12));
+                }
+            }
+            starts.push(t.mid.len() as u32);
+            t.levels.push(starts);
+        }
+        t
+    }
+
+    /// Length on the axis of node `i` of a level whose nodes span `width` patches.
+    fn child_len(lo: f64, hi: f64, h: f64, n: usize, width: usize, i: usize) -> f64 {
+        let (a, b) = (i * width, ((i + 1) * width).min(n));
+        let s1 = if b == n { hi } else { lo + b as f64 * h };
+        s1 - (lo + a as f64 * h)
+    }
+}
+
 /// Adds to `acc` the light that pixel centre `p` receives from its visible
 /// spans; spans of edges farther than their reach are skipped and counted.
+/// Reflected light is gathered from `tree`'s nodes ([`PatchTree`]).
 #[allow(clippy::too_many_arguments)]
 pub fn pixel_light(
     edges: &[Edge],
     patches: &Patches,
     rad: &Radiosity,
+    tree: &PatchTree,
     falloff: Option<Falloff>,
     kernel: Kernel,
     reach: &Reach,
@@ -138,7 +290,8 @@ pub fn pixel_light(
         t: [0.0; BATCH + 1],
         f: [0.0; BATCH + 1],
         l: [0.0; BATCH + 1],
-        pts: [0; BATCH],
+        nodes: [0; BATCH],
+        stack: Vec::new(),
     };
     for span in spans {
         let ei = span.edge as usize;
@@ -168,58 +321,95 @@ pub fn pixel_light(
             }
         }
         if rad.edge_reflects[ei] {
-            reflected_span(patches, rad, edges, span, &line, foot, acc, &mut scratch);
+            let near = Near { d2: d * d, foot };
+            reflected_span(
+                patches,
+                tree,
+                edges,
+                span,
+                &line,
+                &near,
+                acc,
+                &mut scratch,
+            );
         }
     }
     culled
 }
 
-/// Patches of one visible span handled per batch of [`reflected_span`].
+/// Pieces of one visible span handled per batch of [`reflected_span`].
 const BATCH: usize = 32;
 
-/// Buffers of [`reflected_span`]: piece end offsets, antiderivatives, patches.
+/// Buffers of [`reflected_span`]: piece end offsets, antiderivatives, nodes.
 struct Scratch {
     t: [f64; BATCH + 1],
     f: [f64; BATCH + 1],
     l: [f64; BATCH + 1],
-    pts: [usize; BATCH],
+    nodes: [usize; BATCH],
+    /// Tree nodes still to visit: (level, index in the level).
+    stack: Vec<(u32, u32)>,
 }
 
-/// Adds the reflected light (`B - E`, linear along each patch) of the
-/// patches under `span`. The pieces are the same as
-/// [`Patches::for_each_piece`]'s; their end offsets are collected in batches
-/// and the antiderivatives evaluated in tight loops
-/// ([`GatherLine::at_many`]), each piece boundary once.
+/// Where the pixel is relative to the edge: its squared distance to the
+/// edge's line and its foot on it.
+struct Near {
+    d2: f64,
+    foot: f64,
+}
+
+impl Near {
+    /// May a node that needs squared distance `need` stand in for its
+    /// patches over `[a, b]`?
+    #[inline]
+    fn whole(&self, need: f64, a: f64, b: f64) -> bool {
+        let off = self.foot.clamp(a, b) - self.foot;
+        self.d2 + off * off >= need
+    }
+}
+
+/// Adds the reflected light (`B - E`, linear along each piece) under
+/// `span`: the span is cut into pieces at the boundaries of the tree nodes
+/// that [`Near::whole`] accepts (down to single patches), in order along
+/// the edge. Their end offsets are collected in batches and the
+/// antiderivatives evaluated in tight loops ([`GatherLine::at_many`]), each
+/// piece boundary once.
 #[allow(clippy::too_many_arguments)]
 fn reflected_span(
     patches: &Patches,
-    rad: &Radiosity,
+    tree: &PatchTree,
     edges: &[Edge],
     span: &Span,
     line: &GatherLine,
-    foot: f64,
+    near: &Near,
     acc: &mut [f64],
     scratch: &mut Scratch,
 ) {
-    let k = rad.components;
+    let k = tree.k;
     let ei = span.edge as usize;
-    let (lo, _) = edges[ei].extent();
+    let (lo, hi) = edges[ei].extent();
     let h = patches.step[ei];
-    let first = patches.first[ei] as usize;
-    let n = patches.first[ei + 1] as usize - first;
+    let n = patches.of_edge(ei).len();
+    let levels = &tree.levels[ei];
+    let foot = near.foot;
     // t[0] is the start of the batch (the end of the previous one).
-    let Scratch { t, f, l, pts } = scratch;
-    let mut flush = |t: &[f64], pts: &[usize], fresh: usize, f: &mut [f64], l: &mut [f64]| {
-        let m = pts.len();
+    let Scratch {
+        t,
+        f,
+        l,
+        nodes,
+        stack,
+    } = scratch;
+    let mut flush = |t: &[f64], nodes: &[usize], fresh: usize, f: &mut [f64], l: &mut [f64]| {
+        let m = nodes.len();
         line.at_many(&t[fresh..=m], &mut f[fresh..=m], &mut l[fresh..=m]);
         for j in 0..m {
-            let pt = pts[j];
+            let nd = nodes[j];
             let (g0, g1) = ((f[j + 1] - f[j]) / TAU, (l[j + 1] - l[j]) / TAU);
-            // Patch centre, to express B(s) = r + slope (s - mid) in t = s - foot.
-            let mid = lo + ((pt - first) as f64 + 0.5) * h;
+            // Express B(s) = mean + slope (s - mid) in t = s - foot.
+            let mid = tree.mid[nd];
             for c in 0..k {
-                let g = rad.slope[pt * k + c];
-                acc[c] += (rad.reflected[pt * k + c] + g * (foot - mid)) * g0 + g * g1;
+                let g = tree.slope[nd * k + c];
+                acc[c] += (tree.mean[nd * k + c] + g * (foot - mid)) * g0 + g * g1;
             }
         }
     };
@@ -227,35 +417,50 @@ fn reflected_span(
     let mut m = 0;
     // The first batch evaluates its start offset too; later ones carry it.
     let mut fresh = 0;
-    let mut a = span.s0;
-    let mut kk = (((span.s0 - lo) / h).floor().max(0.0) as usize).min(n - 1);
-    loop {
-        let end = if kk + 1 == n {
-            span.s1
-        } else {
-            (lo + (kk + 1) as f64 * h).min(span.s1)
-        };
-        if end > a {
-            pts[m] = first + kk;
-            t[m + 1] = end - foot;
-            m += 1;
-            if m == BATCH {
-                flush(t, &pts[..m], fresh, f, l);
-                t[0] = t[m];
-                f[0] = f[m];
-                l[0] = l[m];
-                m = 0;
-                fresh = 1;
+    // Axis range of node `i` of level `lv`.
+    let bounds = |lv: u32, i: u32| {
+        let (a, b) = ((i as usize) << lv, ((i as usize + 1) << lv).min(n));
+        let s1 = if b == n { hi } else { lo + b as f64 * h };
+        (lo + a as f64 * h, s1)
+    };
+    // Start at the smallest node holding the whole span: the patches of its
+    // two ends first differ in bit `top - 1` of their index.
+    let patch_of = |s: f64| (((s - lo) / h).floor().max(0.0) as usize).min(n - 1);
+    let (j0, j1) = (patch_of(span.s0), patch_of(span.s1));
+    let top = usize::BITS - (j0 ^ j1).leading_zeros();
+    stack.clear();
+    stack.push((top, (j0 >> top) as u32));
+    while let Some((lv, i)) = stack.pop() {
+        let (a, b) = bounds(lv, i);
+        let (a, b) = (a.max(span.s0), b.min(span.s1));
+        let nd = levels[lv as usize] as usize + i as usize;
+        if lv > 0 && !near.whole(tree.need[nd], a, b) {
+            // Children that overlap the span, the right one pushed first so
+            // that the left one is visited first.
+            let below = levels[lv as usize] - levels[lv as usize - 1];
+            let split = lo + ((2 * i as usize + 1) << (lv - 1)) as f64 * h;
+            if 2 * i + 1 < below && split < span.s1 {
+                stack.push((lv - 1, 2 * i + 1));
             }
+            if split > span.s0 {
+                stack.push((lv - 1, 2 * i));
+            }
+            continue;
         }
-        a = end;
-        kk += 1;
-        if kk >= n || a >= span.s1 {
-            break;
+        nodes[m] = nd;
+        t[m + 1] = b - foot;
+        m += 1;
+        if m == BATCH {
+            flush(t, &nodes[..m], fresh, f, l);
+            t[0] = t[m];
+            f[0] = f[m];
+            l[0] = l[m];
+            m = 0;
+            fresh = 1;
         }
     }
     if m > 0 {
-        flush(t, &pts[..m], fresh, f, l);
+        flush(t, &nodes[..m], fresh, f, l);
     }
 }
 
@@ -300,6 +505,9 @@ pub fn floor_pixels(level: &Level) -> Vec<[i32; 2]> {
 
 /// Fast gather: light at each of `pixels`, `components` values per pixel,
 /// and what was left out (beyond reach, or in regions no lit edge reaches).
+/// Distant reflected light is gathered in merged pieces whose total error
+/// per pixel is at most `tolerance` ([`PatchTree`], deviations measured
+/// over the components `decide`).
 #[allow(clippy::too_many_arguments)]
 pub fn gather(
     geometry: &Geometry,
@@ -309,8 +517,11 @@ pub fn gather(
     kernel: Kernel,
     pixels: &[[i32; 2]],
     reach: &Reach,
+    tolerance: f64,
+    decide: std::ops::Range<usize>,
 ) -> (Vec<f64>, VisitStats) {
     let k = rad.components;
+    let tree = PatchTree::new(&geometry.edges, patches, rad, decide, falloff, tolerance);
     let mut out = vec![0.0; pixels.len() * k];
     let pos: Vec<[f64; 2]> = pixels
         .iter()
@@ -343,6 +554,7 @@ pub fn gather(
                 &geometry.edges,
                 patches,
                 rad,
+                &tree,
                 falloff,
                 kernel,
                 reach,

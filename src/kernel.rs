@@ -41,6 +41,11 @@ impl Falloff {
         }
     }
 
+    /// The constant `A = falloff^2`.
+    pub fn a(&self) -> f64 {
+        self.a
+    }
+
     /// The weight `A / (A + r^2)` at distance `r`.
     pub fn weight(&self, r: f64) -> f64 {
         self.a / (self.a + r * r)
