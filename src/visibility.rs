@@ -114,17 +114,29 @@ impl Piece {
     }
 }
 
+/// A sweep event: where a piece starts or ends. Compact (16 bytes), since
+/// every query sorts a few hundred of them.
 #[derive(Clone, Copy, Debug)]
 struct Event {
     key: f64,
-    /// The endpoint that produced the event, global coordinates.
-    vertex: [f64; 2],
-    piece: u32,
-    insert: bool,
     /// `edge * 4 + part * 2 + insert` (`part` 1 for the second half of an
     /// edge split at the cut ray): breaks ties between equal keys the same
     /// way whatever order the events were generated in.
     id: u32,
+    /// `piece * 2`, plus 1 for the end of the piece (then its `vb`, else its `va`).
+    code: u32,
+}
+
+impl Event {
+    #[inline]
+    fn piece(&self) -> u32 {
+        self.code >> 1
+    }
+
+    #[inline]
+    fn insert(&self) -> bool {
+        self.code & 1 == 0
+    }
 }
 
 /// Diamond pseudo-angle of direction `(u, v)`: `0` at `+u`, increasing
@@ -612,7 +624,6 @@ pub struct Sweeper {
     /// Per event id: `(generation, index in events)`.
     slot: Vec<(u32, u32)>,
     sorted: Vec<Event>,
-    keys: Vec<(f64, u32, u32)>,
     sweep_generation: u32,
     /// Per piece: its index in `active`, or `u32::MAX`.
     at: Vec<u32>,
@@ -656,17 +667,13 @@ impl Sweeper {
             let base = pc.edge * 4 + part * 2;
             self.events.push(Event {
                 key: pc.ka,
-                vertex: pc.va,
-                piece: id as u32,
-                insert: true,
                 id: base + 1,
+                code: 2 * id as u32,
             });
             self.events.push(Event {
                 key: pc.kb,
-                vertex: pc.vb,
-                piece: id as u32,
-                insert: false,
                 id: base,
+                code: 2 * id as u32 + 1,
             });
         }
         self.sort_events(edges.len());
@@ -682,25 +689,30 @@ impl Sweeper {
         let mut current: Option<u32> = None;
         while i < n {
             let key = self.events[i].key;
-            let vertex = self.events[i].vertex;
+            let vertex = {
+                let ev = self.events[i];
+                let pc = &self.pieces[ev.piece() as usize];
+                if ev.insert() { pc.va } else { pc.vb }
+            };
             self.fresh.clear();
             let mut lost_nearest = false;
             while i < n && self.events[i].key == key {
                 let ev = self.events[i];
-                if ev.insert {
-                    self.at[ev.piece as usize] = self.active.len() as u32;
-                    self.active.push(ev.piece);
-                    self.fresh.push(ev.piece);
+                let piece = ev.piece();
+                if ev.insert() {
+                    self.at[piece as usize] = self.active.len() as u32;
+                    self.active.push(piece);
+                    self.fresh.push(piece);
                 } else {
-                    let pos = self.at[ev.piece as usize];
+                    let pos = self.at[piece as usize];
                     if pos != u32::MAX {
                         let pos = pos as usize;
                         self.active.swap_remove(pos);
                         if let Some(&moved) = self.active.get(pos) {
                             self.at[moved as usize] = pos as u32;
                         }
-                        self.at[ev.piece as usize] = u32::MAX;
-                        lost_nearest |= current == Some(ev.piece);
+                        self.at[piece as usize] = u32::MAX;
+                        lost_nearest |= current == Some(piece);
                     }
                 }
                 i += 1;
@@ -769,38 +781,34 @@ impl Sweeper {
         for (i, ev) in self.events.iter().enumerate() {
             self.slot[ev.id as usize] = (g, i as u32);
         }
-        // Sorted as compact (key, id, index) triples, then the events
-        // gathered once in that order.
-        let keys = &mut self.keys;
+        // Laid out in the previous order first, then the new ones; ties
+        // between equal keys and ids (a repeated candidate) by `code`.
+        let keys = &mut self.sorted;
         keys.clear();
         for &id in &self.order {
             if let Some(&(sg, i)) = self.slot.get(id as usize)
                 && sg == g
             {
-                keys.push((self.events[i as usize].key, id, i));
+                keys.push(self.events[i as usize]);
                 // Taken: one generation back, never equal to `g` again soon.
                 self.slot[id as usize].0 = g.wrapping_sub(1);
             }
         }
-        for (i, ev) in self.events.iter().enumerate() {
+        for ev in &self.events {
             if self.slot[ev.id as usize].0 == g {
-                keys.push((ev.key, ev.id, i as u32));
+                keys.push(*ev);
             }
         }
         if keys.len() != self.events.len() {
             // A repeated candidate gave two events one id: start afresh.
             keys.clear();
-            keys.extend(
-                self.events
-                    .iter()
-                    .enumerate()
-                    .map(|(i, e)| (e.key, e.id, i as u32)),
-            );
+            keys.extend_from_slice(&self.events);
         }
-        let less = |x: &(f64, u32, u32), y: &(f64, u32, u32)| {
-            x.0.total_cmp(&y.0)
-                .then(x.1.cmp(&y.1))
-                .then(x.2.cmp(&y.2))
+        let less = |x: &Event, y: &Event| {
+            x.key
+                .total_cmp(&y.key)
+                .then(x.id.cmp(&y.id))
+                .then(x.code.cmp(&y.code))
                 .is_lt()
         };
         // Insertion sort: linear in the number of events plus the number
@@ -822,14 +830,14 @@ impl Sweeper {
         }
         if i < keys.len() {
             keys.sort_unstable_by(|x, y| {
-                x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2))
+                x.key
+                    .total_cmp(&y.key)
+                    .then(x.id.cmp(&y.id))
+                    .then(x.code.cmp(&y.code))
             });
         }
         self.order.clear();
-        self.order.extend(keys.iter().map(|k| k.1));
-        self.sorted.clear();
-        self.sorted
-            .extend(keys.iter().map(|k| self.events[k.2 as usize]));
+        self.order.extend(keys.iter().map(|k| k.id));
         std::mem::swap(&mut self.events, &mut self.sorted);
     }
 
