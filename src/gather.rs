@@ -322,16 +322,7 @@ pub fn pixel_light(
         }
         if rad.edge_reflects[ei] {
             let near = Near { d2: d * d, foot };
-            reflected_span(
-                patches,
-                tree,
-                edges,
-                span,
-                &line,
-                &near,
-                acc,
-                &mut scratch,
-            );
+            reflected_span(patches, tree, edges, span, &line, &near, acc, &mut scratch);
         }
     }
     culled

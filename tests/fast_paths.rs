@@ -127,12 +127,21 @@ fn check_gather(
     let b: Vec<Vec<f64>> = (0..2)
         .map(|_| {
             let base = 5.0 * next();
-            (0..n).map(|p| base + 0.01 * p as f64 + next() * next() * next()).collect()
+            (0..n)
+                .map(|p| base + 0.01 * p as f64 + next() * next() * next())
+                .collect()
         })
         .collect();
-    let sl: Vec<Vec<f64>> = (0..2).map(|_| (0..n).map(|_| next() - 0.5).collect()).collect();
+    let sl: Vec<Vec<f64>> = (0..2)
+        .map(|_| (0..n).map(|_| next() - 0.5).collect())
+        .collect();
     let e: Vec<Vec<f64>> = (0..2)
-        .map(|_| g.edges.iter().map(|ed| l.materials[ed.material as usize].emission[0]).collect())
+        .map(|_| {
+            g.edges
+                .iter()
+                .map(|ed| l.materials[ed.material as usize].emission[0])
+                .collect()
+        })
         .collect();
     let rad = Radiosity::new(&patches, &b, &sl, &e);
     let falloff = fall.map(Falloff::new);
@@ -143,18 +152,37 @@ fn check_gather(
     let mut spans = Vec::new();
     for y in 0..l.height {
         for x in 0..l.width {
-            let Some(comp) = g.component_at(x as i64, y as i64) else { continue };
+            let Some(comp) = g.component_at(x as i64, y as i64) else {
+                continue;
+            };
             let p = [x as f64 + 0.5, y as f64 + 0.5];
             spans.clear();
             sw.sweep(&g.edges, &all, p, View::Full, comp, &mut spans);
             let mut acc = vec![0.0; 2];
-            pixel_light(&g.edges, &patches, &rad, &tree, falloff, Kernel::Flatland, &reach, p, &spans, &mut acc);
+            pixel_light(
+                &g.edges,
+                &patches,
+                &rad,
+                &tree,
+                falloff,
+                Kernel::Flatland,
+                &reach,
+                p,
+                &spans,
+                &mut acc,
+            );
             let want = reference_light(&g.edges, &patches, &rad, falloff, p, &spans);
             for ch in 0..2 {
                 let allowed = tolerance + 1e-12 * (1.0 + want[ch].abs());
                 prop_assert!(
                     (acc[ch] - want[ch]).abs() <= allowed,
-                    "pixel ({}, {}) channel {}: {} vs {} (tolerance {})", x, y, ch, acc[ch], want[ch], tolerance
+                    "pixel ({}, {}) channel {}: {} vs {} (tolerance {})",
+                    x,
+                    y,
+                    ch,
+                    acc[ch],
+                    want[ch],
+                    tolerance
                 );
             }
         }
