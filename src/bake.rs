@@ -648,7 +648,7 @@ pub fn bake(
     } else {
         match settings.gather {
             GatherMethod::Fast => {
-                let (v, stats) = gather::gather(
+                let (v, stats, counts) = gather::gather(
                     &geometry,
                     &patches,
                     &rad,
@@ -661,6 +661,16 @@ pub fn bake(
                 );
                 culled_pairs += stats.culled_pairs;
                 unreached_in_reach = stats.unreached as usize;
+                if reach_bound > 0.0 && counts.pieces < counts.patch_pieces {
+                    skip(
+                        &mut skipped,
+                        "distant patches",
+                        format!(
+                            "reflected light gathered as {} pieces instead of {} patch pieces: far from a pixel, runs of patches whose light is nearly linear are taken as one line (error at most {:e} of the brightest emission per pixel)",
+                            counts.pieces, counts.patch_pieces, reach_bound
+                        ),
+                    );
+                }
                 v
             }
             GatherMethod::Naive => gather::gather_naive(

@@ -267,6 +267,25 @@ impl PatchTree {
     }
 }
 
+/// What gathering skipped or merged, summed over pixels.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct GatherCounts {
+    /// Visible spans of edges beyond their falloff reach, not gathered.
+    pub culled: u64,
+    /// Pieces of reflected light gathered ([`PatchTree`] nodes) ...
+    pub pieces: u64,
+    /// ... and the patch pieces they stand for (equal when nothing merged).
+    pub patch_pieces: u64,
+}
+
+impl std::ops::AddAssign for GatherCounts {
+    fn add_assign(&mut self, o: GatherCounts) {
+        self.culled += o.culled;
+        self.pieces += o.pieces;
+        self.patch_pieces += o.patch_pieces;
+    }
+}
+
 /// Adds to `acc` the light that pixel centre `p` receives from its visible
 /// spans; spans of edges farther than their reach are skipped and counted.
 /// Reflected light is gathered from `tree`'s nodes ([`PatchTree`]).
@@ -282,7 +301,7 @@ pub fn pixel_light(
     p: [f64; 2],
     spans: &[Span],
     acc: &mut [f64],
-) -> u64 {
+) -> GatherCounts {
     let k = rad.components;
     let mut culled = 0;
     // Scratch for reflected_span, initialised once per point, not per span.
@@ -292,6 +311,8 @@ pub fn pixel_light(
         l: [0.0; BATCH + 1],
         nodes: [0; BATCH],
         stack: Vec::new(),
+        pieces: 0,
+        patch_pieces: 0,
     };
     for span in spans {
         let ei = span.edge as usize;
@@ -325,7 +346,11 @@ pub fn pixel_light(
             reflected_span(patches, tree, edges, span, &line, &near, acc, &mut scratch);
         }
     }
-    culled
+    GatherCounts {
+        culled,
+        pieces: scratch.pieces,
+        patch_pieces: scratch.patch_pieces,
+    }
 }
 
 /// Pieces of one visible span handled per batch of [`reflected_span`].
@@ -339,6 +364,9 @@ struct Scratch {
     nodes: [usize; BATCH],
     /// Tree nodes still to visit: (level, index in the level).
     stack: Vec<(u32, u32)>,
+    /// Pieces gathered and the patch pieces they stand for.
+    pieces: u64,
+    patch_pieces: u64,
 }
 
 /// Where the pixel is relative to the edge: its squared distance to the
@@ -389,6 +417,8 @@ fn reflected_span(
         l,
         nodes,
         stack,
+        pieces,
+        patch_pieces,
     } = scratch;
     let mut flush = |t: &[f64], nodes: &[usize], fresh: usize, f: &mut [f64], l: &mut [f64]| {
         let m = nodes.len();
@@ -438,6 +468,10 @@ fn reflected_span(
             }
             continue;
         }
+        // Patches of the node under the span.
+        let (first, last) = ((i as usize) << lv, ((i as usize + 1) << lv) - 1);
+        *pieces += 1;
+        *patch_pieces += (last.min(j1) + 1).saturating_sub(first.max(j0)) as u64;
         nodes[m] = nd;
         t[m + 1] = b - foot;
         m += 1;
@@ -498,7 +532,7 @@ pub fn floor_pixels(level: &Level) -> Vec<[i32; 2]> {
 /// and what was left out (beyond reach, or in regions no lit edge reaches).
 /// Distant reflected light is gathered in merged pieces whose total error
 /// per pixel is at most `tolerance` ([`PatchTree`], deviations measured
-/// over the components `decide`).
+/// over the components `decide`); how much was merged is counted.
 #[allow(clippy::too_many_arguments)]
 pub fn gather(
     geometry: &Geometry,
@@ -510,7 +544,7 @@ pub fn gather(
     reach: &Reach,
     tolerance: f64,
     decide: std::ops::Range<usize>,
-) -> (Vec<f64>, VisitStats) {
+) -> (Vec<f64>, VisitStats, GatherCounts) {
     let k = rad.components;
     let tree = PatchTree::new(&geometry.edges, patches, rad, decide, falloff, tolerance);
     let mut out = vec![0.0; pixels.len() * k];
@@ -519,7 +553,7 @@ pub fn gather(
         .map(|p| [p[0] as f64 + 0.5, p[1] as f64 + 0.5])
         .collect();
     let shared = Disjoint::new(&mut out);
-    let culled = std::sync::atomic::AtomicU64::new(0);
+    let counts = std::sync::Mutex::new(GatherCounts::default());
     let lit = |e: u32, dist: f64| {
         let e = e as usize;
         (rad.edge_emits[e] || rad.edge_reflects[e]) && dist <= reach.radius[e]
@@ -553,17 +587,19 @@ pub fn gather(
                 spans,
                 acc,
             );
-            if c > 0 {
-                culled.fetch_add(c, std::sync::atomic::Ordering::Relaxed);
-            }
+            // Summed per pixel: a pixel's gather takes microseconds.
+            *counts.lock().expect("no panics while holding the lock") += c;
             for (c, &v) in acc.iter().enumerate() {
                 // SAFETY: each pixel index is visited exactly once.
                 unsafe { shared.write(i * k + c, v) };
             }
         },
     );
-    stats.culled_pairs += culled.into_inner();
-    (out, stats)
+    let counts = counts
+        .into_inner()
+        .expect("no panics while holding the lock");
+    stats.culled_pairs += counts.culled;
+    (out, stats, counts)
 }
 
 /// Does the segment `p -> q` touch edge `e` (closed segments)?

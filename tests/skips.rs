@@ -216,6 +216,46 @@ fn falloff_reach_skip_stays_within_its_bound() {
     }
 }
 
+/// Far from a pixel, runs of patches whose reflected light is nearly linear
+/// are gathered as one line; the merged pieces' errors are bounded by the
+/// tolerance times the angle they cover, so every pixel stays within
+/// `reach_bound` times the brightest emission of the exact gather.
+#[test]
+fn distant_patches_merge_within_their_bound() {
+    let e = 5.0;
+    let mut rows: Vec<String> = common::room(300, 24);
+    rows[0].replace_range(20..24, "LLLL");
+    rows[12].replace_range(150..160, "##########");
+    let level = ascii(&refs(&rows), &[('#', wall(0.7)), ('L', light(e, 0.0))]);
+    for falloff in [None, Some(60.0)] {
+        for q in [Quality::Draft, Quality::Normal, Quality::High] {
+            let b = run(&level, q, falloff, false);
+            let full = run(&level, q, falloff, true);
+            assert!(
+                skipped(&b, "distant patches"),
+                "{q}: {:?}",
+                b.report.skipped
+            );
+            assert!(!skipped(&full, "distant patches"));
+            let bound = q.knobs().reach_bound * e;
+            let brightest = full
+                .lightmap
+                .rgb
+                .iter()
+                .flatten()
+                .fold(0f32, |m, &v| m.max(v)) as f64;
+            // Without falloff nothing else is left out; with it, the reach
+            // culling may add its own (bounded) share on the far pixels.
+            let culled = b.report.counts.culled_pairs as f64 * bound;
+            let d = max_diff(&b, &full);
+            assert!(
+                d <= bound + culled + 1e-6 * brightest,
+                "{q} falloff {falloff:?}: largest difference {d:.3e}, bound {bound:.1e}"
+            );
+        }
+    }
+}
+
 /// `bounces = N` truncates the series: a closed room of emission e and
 /// reflectance r reads e (1 - r^(N+1)) / (1 - r).
 #[test]
