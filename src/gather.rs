@@ -146,7 +146,10 @@ pub struct PatchTree {
     need: Vec<f64>,
     /// Per edge: where each level's nodes start in the arrays, bottom (the
     /// patches) to top (one node), and the end of the last level.
-    levels: Vec<Vec<u32>>,
+    levels: Vec<u32>,
+    /// Per edge: where its entries of `levels` start (edge `e`'s are
+    /// `levels[edge_levels[e]..edge_levels[e + 1]]`).
+    edge_levels: Vec<u32>,
 }
 
 impl PatchTree {
@@ -181,7 +184,8 @@ impl PatchTree {
             slope: Vec::new(),
             mid: Vec::new(),
             need: Vec::new(),
-            levels: Vec::with_capacity(edges.len()),
+            levels: Vec::with_capacity(2 * edges.len()),
+            edge_levels: vec![0],
         };
         for (ei, e) in edges.iter().enumerate() {
             let (lo, hi) = e.extent();
@@ -193,7 +197,8 @@ impl PatchTree {
             if !rad.edge_reflects[ei] {
                 // Never walked: one empty level keeps the indexing uniform.
                 starts.push(t.mid.len() as u32);
-                t.levels.push(starts);
+                t.levels.extend_from_slice(&starts);
+                t.edge_levels.push(t.levels.len() as u32);
                 continue;
             }
             // Level 0: the patches.
@@ -254,7 +259,8 @@ impl PatchTree {
                 }
             }
             starts.push(t.mid.len() as u32);
-            t.levels.push(starts);
+            t.levels.extend_from_slice(&starts);
+            t.edge_levels.push(t.levels.len() as u32);
         }
         t
     }
@@ -408,7 +414,7 @@ fn reflected_span(
     let (lo, hi) = edges[ei].extent();
     let h = patches.step[ei];
     let n = patches.of_edge(ei).len();
-    let levels = &tree.levels[ei];
+    let levels = &tree.levels[tree.edge_levels[ei] as usize..tree.edge_levels[ei + 1] as usize];
     let foot = near.foot;
     // t[0] is the start of the batch (the end of the previous one).
     let Scratch {
@@ -448,6 +454,15 @@ fn reflected_span(
     // two ends first differ in bit `top - 1` of their index.
     let patch_of = |s: f64| (((s - lo) / h).floor().max(0.0) as usize).min(n - 1);
     let (j0, j1) = (patch_of(span.s0), patch_of(span.s1));
+    if j0 == j1 {
+        // Within one patch (most spans, on short edges): no walk.
+        nodes[0] = levels[0] as usize + j0;
+        t[1] = span.s1 - foot;
+        *pieces += 1;
+        *patch_pieces += 1;
+        flush(t, &nodes[..1], 0, f, l);
+        return;
+    }
     let top = usize::BITS - (j0 ^ j1).leading_zeros();
     stack.clear();
     stack.push((top, (j0 >> top) as u32));
@@ -468,12 +483,12 @@ fn reflected_span(
             }
             continue;
         }
-        // Patches of the node under the span.
+        // Patches of the node under the span; the last piece ends the span.
         let (first, last) = ((i as usize) << lv, ((i as usize + 1) << lv) - 1);
         *pieces += 1;
         *patch_pieces += (last.min(j1) + 1).saturating_sub(first.max(j0)) as u64;
         nodes[m] = nd;
-        t[m + 1] = b - foot;
+        t[m + 1] = if last >= j1 { span.s1 } else { b } - foot;
         m += 1;
         if m == BATCH {
             flush(t, &nodes[..m], fresh, f, l);
