@@ -209,26 +209,27 @@ impl PatchTree {
                 t.mid.push(lo + (j as f64 + 0.5) * h);
                 t.need.push(0.0);
             }
-            let mut width = 1usize;
+            let range = |lv: u32, i: usize| node_range(lo, hi, h, n, lv, i);
+            let mut lv = 0;
             let mut count = n;
             while count > 1 {
                 let below = *starts.last().expect("level 0 exists") as usize;
                 starts.push(t.mid.len() as u32);
-                width *= 2;
+                lv += 1;
                 count = count.div_ceil(2);
                 for i in 0..count {
-                    let (a, b) = (i * width, ((i + 1) * width).min(n));
-                    let s0 = lo + a as f64 * h;
-                    let s1 = if b == n { hi } else { lo + b as f64 * h };
+                    let (a, b) = (i << lv, ((i + 1) << lv).min(n));
+                    let (s0, s1) = range(lv, i);
                     let (len, mid) = (s1 - s0, 0.5 * (s0 + s1));
                     // Moments of the children's lines equal the patches'
                     // (a least-squares line keeps both): sum them.
-                    let kids = [below + 2 * i, below + 2 * i + 1];
-                    let kids = &kids[..if b - a > width / 2 { 2 } else { 1 }];
+                    let kids = [2 * i, 2 * i + 1];
+                    let kids = &kids[..if b - a > 1 << (lv - 1) { 2 } else { 1 }];
                     for c in 0..k {
                         let (mut m0, mut m1) = (0.0, 0.0);
-                        for &ch in kids {
-                            let cl = Self::child_len(lo, hi, h, n, width / 2, ch - below);
+                        for &kid in kids {
+                            let (k0, k1) = range(lv - 1, kid);
+                            let (ch, cl) = (below + kid, k1 - k0);
                             m0 += t.mean[ch * k + c] * cl;
                             m1 += t.slope[ch * k + c] * cl * cl * cl / 12.0
                                 + t.mean[ch * k + c] * cl * (t.mid[ch] - mid);
@@ -264,13 +265,18 @@ impl PatchTree {
         }
         t
     }
+}
 
-    /// Length on the axis of node `i` of a level whose nodes span `width` patches.
-    fn child_len(lo: f64, hi: f64, h: f64, n: usize, width: usize, i: usize) -> f64 {
-        let (a, b) = (i * width, ((i + 1) * width).min(n));
-        let s1 = if b == n { hi } else { lo + b as f64 * h };
-        s1 - (lo + a as f64 * h)
-    }
+/// Axis range of node `i` of level `lv` (patches `i 2^lv ..` up to
+/// `(i + 1) 2^lv`) of an edge from `lo` to `hi` cut into `n` patches of
+/// length `h`: the same boundaries as [`Patches::bounds`].
+#[inline]
+fn node_range(lo: f64, hi: f64, h: f64, n: usize, lv: u32, i: usize) -> (f64, f64) {
+    let (a, b) = (i << lv, ((i + 1) << lv).min(n));
+    (
+        lo + a as f64 * h,
+        if b == n { hi } else { lo + b as f64 * h },
+    )
 }
 
 /// What gathering skipped or merged, summed over pixels.
@@ -444,12 +450,6 @@ fn reflected_span(
     let mut m = 0;
     // The first batch evaluates its start offset too; later ones carry it.
     let mut fresh = 0;
-    // Axis range of node `i` of level `lv`.
-    let bounds = |lv: u32, i: u32| {
-        let (a, b) = ((i as usize) << lv, ((i as usize + 1) << lv).min(n));
-        let s1 = if b == n { hi } else { lo + b as f64 * h };
-        (lo + a as f64 * h, s1)
-    };
     // Start at the smallest node holding the whole span: the patches of its
     // two ends first differ in bit `top - 1` of their index.
     let patch_of = |s: f64| (((s - lo) / h).floor().max(0.0) as usize).min(n - 1);
@@ -467,7 +467,7 @@ fn reflected_span(
     stack.clear();
     stack.push((top, (j0 >> top) as u32));
     while let Some((lv, i)) = stack.pop() {
-        let (a, b) = bounds(lv, i);
+        let (a, b) = node_range(lo, hi, h, n, lv, i as usize);
         let (a, b) = (a.max(span.s0), b.min(span.s1));
         let nd = levels[lv as usize] as usize + i as usize;
         if lv > 0 && !near.whole(tree.need[nd], a, b) {
