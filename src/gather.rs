@@ -167,15 +167,13 @@ impl PatchTree {
         let k = rad.components;
         // dev * A / (A + r^2) <= tolerance  <=>  r^2 >= A (dev / tolerance - 1).
         let need = |dev: f64| {
-            if dev == 0.0 {
+            if dev <= tolerance {
                 0.0
-            } else if dev > tolerance {
+            } else {
                 falloff.map_or(f64::INFINITY, |f| {
                     let r2 = f.a() * (dev / tolerance - 1.0);
                     if r2.is_finite() { r2 } else { f64::INFINITY }
                 })
-            } else {
-                0.0
             }
         };
         let mut t = PatchTree {
@@ -322,7 +320,7 @@ pub fn pixel_light(
         f: [0.0; BATCH + 1],
         l: [0.0; BATCH + 1],
         nodes: [0; BATCH],
-        stack: Vec::new(),
+        stack: [(0, 0); STACK],
         pieces: 0,
         patch_pieces: 0,
     };
@@ -368,14 +366,20 @@ pub fn pixel_light(
 /// Pieces of one visible span handled per batch of [`reflected_span`].
 const BATCH: usize = 32;
 
+/// Room for the tree walk of [`reflected_span`], with no allocation per
+/// pixel: patch indices are `u32`, so a tree is at most 33 levels deep.
+const STACK: usize = 64;
+
 /// Buffers of [`reflected_span`]: piece end offsets, antiderivatives, nodes.
 struct Scratch {
     t: [f64; BATCH + 1],
     f: [f64; BATCH + 1],
     l: [f64; BATCH + 1],
     nodes: [usize; BATCH],
-    /// Tree nodes still to visit: (level, index in the level).
-    stack: Vec<(u32, u32)>,
+    /// Tree nodes still to visit: (level, index in the level). A walk pops
+    /// one node and pushes at most two per level down, so it never holds
+    /// more than the tree's depth plus one.
+    stack: [(u32, u32); STACK],
     /// Pieces gathered and the patch pieces they stand for.
     pieces: u64,
     patch_pieces: u64,
@@ -464,9 +468,11 @@ fn reflected_span(
         return;
     }
     let top = usize::BITS - (j0 ^ j1).leading_zeros();
-    stack.clear();
-    stack.push((top, (j0 >> top) as u32));
-    while let Some((lv, i)) = stack.pop() {
+    stack[0] = (top, (j0 >> top) as u32);
+    let mut sp = 1;
+    while sp > 0 {
+        sp -= 1;
+        let (lv, i) = stack[sp];
         let (a, b) = node_range(lo, hi, h, n, lv, i as usize);
         let (a, b) = (a.max(span.s0), b.min(span.s1));
         let nd = levels[lv as usize] as usize + i as usize;
@@ -476,10 +482,12 @@ fn reflected_span(
             let below = levels[lv as usize] - levels[lv as usize - 1];
             let split = lo + ((2 * i as usize + 1) << (lv - 1)) as f64 * h;
             if 2 * i + 1 < below && split < span.s1 {
-                stack.push((lv - 1, 2 * i + 1));
+                stack[sp] = (lv - 1, 2 * i + 1);
+                sp += 1;
             }
             if split > span.s0 {
-                stack.push((lv - 1, 2 * i));
+                stack[sp] = (lv - 1, 2 * i);
+                sp += 1;
             }
             continue;
         }
