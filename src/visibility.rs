@@ -137,6 +137,15 @@ impl Event {
     fn insert(&self) -> bool {
         self.code & 1 == 0
     }
+
+    /// The sweep's total order: by key, ties by id, then by code.
+    #[inline]
+    fn order(&self, o: &Event) -> std::cmp::Ordering {
+        self.key
+            .total_cmp(&o.key)
+            .then(self.id.cmp(&o.id))
+            .then(self.code.cmp(&o.code))
+    }
 }
 
 /// Diamond pseudo-angle of direction `(u, v)`: `0` at `+u`, increasing
@@ -804,13 +813,6 @@ impl Sweeper {
             keys.clear();
             keys.extend_from_slice(&self.events);
         }
-        let less = |x: &Event, y: &Event| {
-            x.key
-                .total_cmp(&y.key)
-                .then(x.id.cmp(&y.id))
-                .then(x.code.cmp(&y.code))
-                .is_lt()
-        };
         // Insertion sort: linear in the number of events plus the number
         // of pairs out of order, which is small between neighbours. Past a
         // budget of moves, a general sort finishes the job.
@@ -820,7 +822,7 @@ impl Sweeper {
         while i < keys.len() && moves <= budget {
             let x = keys[i];
             let mut j = i;
-            while j > 0 && less(&x, &keys[j - 1]) {
+            while j > 0 && x.order(&keys[j - 1]).is_lt() {
                 keys[j] = keys[j - 1];
                 j -= 1;
             }
@@ -829,12 +831,7 @@ impl Sweeper {
             i += 1;
         }
         if i < keys.len() {
-            keys.sort_unstable_by(|x, y| {
-                x.key
-                    .total_cmp(&y.key)
-                    .then(x.id.cmp(&y.id))
-                    .then(x.code.cmp(&y.code))
-            });
+            keys.sort_unstable_by(Event::order);
         }
         self.order.clear();
         self.order.extend(keys.iter().map(|k| k.id));
