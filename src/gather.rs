@@ -19,7 +19,7 @@ use crate::kernel::Reach;
 use crate::kernel::{Falloff, GatherLine};
 use crate::level::{Cell, Level};
 use crate::transport::{Patches, for_each_visibility};
-use crate::transport::{VisitStats, edge_distance};
+use crate::transport::{VisitStats, beyond};
 use crate::visibility::{Span, View};
 
 /// Radiosity in a form the gather can use: `components` values per edge
@@ -330,7 +330,7 @@ pub fn pixel_light(
         if !(rad.edge_emits[ei] || rad.edge_reflects[ei]) {
             continue;
         }
-        if reach.radius[ei].is_finite() && reach.radius[ei] < edge_distance(e, p) {
+        if beyond(e, p, reach.radius[ei]) {
             culled += 1;
             continue;
         }

@@ -152,7 +152,7 @@ pub fn point_factors(
     for span in spans {
         let e = &edges[span.edge as usize];
         let d = e.front_distance(x);
-        if reach.radius[span.edge as usize] < edge_distance(e, x) {
+        if beyond(e, x, reach.radius[span.edge as usize]) {
             culled += 1;
             continue;
         }
@@ -186,6 +186,19 @@ pub fn point_factors(
 /// Distance from point `p` to edge `e`.
 #[inline]
 pub fn edge_distance(e: &Edge, p: [f64; 2]) -> f64 {
+    edge_distance_sq(e, p).sqrt()
+}
+
+/// Is edge `e` farther than `radius` from point `p`? Compared squared, so
+/// the many per-pixel tests need no square root.
+#[inline]
+pub fn beyond(e: &Edge, p: [f64; 2], radius: f64) -> bool {
+    radius.is_finite() && radius * radius < edge_distance_sq(e, p)
+}
+
+/// Squared distance from point `p` to edge `e`.
+#[inline]
+fn edge_distance_sq(e: &Edge, p: [f64; 2]) -> f64 {
     let (lo, hi) = e.extent();
     let s = if e.normal.is_vertical_edge() {
         p[1]
@@ -194,7 +207,7 @@ pub fn edge_distance(e: &Edge, p: [f64; 2]) -> f64 {
     };
     let along = (lo - s).max(s - hi).max(0.0);
     let d = e.front_distance(p);
-    (d * d + along * along).sqrt()
+    d * d + along * along
 }
 
 /// The form factors, stored as the symmetric matrix `S` (full storage, CSR)

@@ -83,6 +83,15 @@ impl Piece {
         }
     }
 
+    /// [`Piece::t`] times a positive factor that depends on the ray only:
+    /// `|c| su` for a piece on `u = c`, `|c| sv` else. With `(su, sv) =
+    /// (|dv|, |du|)` that is `t |du| |dv|` (for a ray that hits the piece in
+    /// front, `c` has the sign of `du`, or of `dv`).
+    #[inline]
+    fn t_scaled(&self, su: f64, sv: f64) -> f64 {
+        self.c.abs() * if self.u_const { su } else { sv }
+    }
+
     /// Distance from the query point to the piece along pseudo-angle `k`.
     #[inline]
     fn distance_at(&self, k: f64) -> f64 {
@@ -115,36 +124,50 @@ impl Piece {
 }
 
 /// A sweep event: where a piece starts or ends. Compact (16 bytes), since
-/// every query sorts a few hundred of them.
-#[derive(Clone, Copy, Debug)]
-struct Event {
-    key: f64,
-    /// `edge * 4 + part * 2 + insert` (`part` 1 for the second half of an
-    /// edge split at the cut ray): breaks ties between equal keys the same
-    /// way whatever order the events were generated in.
-    id: u32,
-    /// `piece * 2`, plus 1 for the end of the piece (then its `vb`, else its `va`).
-    code: u32,
-}
+/// every query sorts a few hundred of them, and packed so that comparing
+/// two events is one integer comparison: the key's bits (keys are finite
+/// and not negative, so their bits order like their values), then the id,
+/// then the code.
+///
+/// * id: `edge * 4 + part * 2 + insert` (`part` 1 for the second half of
+///   an edge split at the cut ray): breaks ties between equal keys the same
+///   way whatever order the events were generated in.
+/// * code: `piece * 2`, plus 1 for the end of the piece (then its `vb`,
+///   else its `va`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+struct Event(u128);
 
 impl Event {
     #[inline]
+    fn new(key: f64, id: u32, code: u32) -> Event {
+        // `+ 0.0` turns a key of -0 into +0, whose bits sort first.
+        let bits = (key + 0.0).to_bits();
+        Event(((bits as u128) << 64) | ((id as u128) << 32) | code as u128)
+    }
+
+    #[inline]
+    fn key(&self) -> f64 {
+        f64::from_bits((self.0 >> 64) as u64)
+    }
+
+    #[inline]
+    fn id(&self) -> u32 {
+        (self.0 >> 32) as u32
+    }
+
+    #[inline]
+    fn code(&self) -> u32 {
+        self.0 as u32
+    }
+
+    #[inline]
     fn piece(&self) -> u32 {
-        self.code >> 1
+        self.code() >> 1
     }
 
     #[inline]
     fn insert(&self) -> bool {
-        self.code & 1 == 0
-    }
-
-    /// The sweep's total order: by key, ties by id, then by code.
-    #[inline]
-    fn order(&self, o: &Event) -> std::cmp::Ordering {
-        self.key
-            .total_cmp(&o.key)
-            .then(self.id.cmp(&o.id))
-            .then(self.code.cmp(&o.code))
+        self.code() & 1 == 0
     }
 }
 
@@ -213,6 +236,10 @@ impl Query {
     #[inline]
     fn local(&self, q: [f64; 2]) -> (f64, f64) {
         let d = [q[0] - self.p[0], q[1] - self.p[1]];
+        if self.full {
+            // The identity frame: the same numbers without the products.
+            return (d[0], d[1]);
+        }
         (
             d[0] * self.eu[0] + d[1] * self.eu[1],
             d[0] * self.ev[0] + d[1] * self.ev[1],
@@ -221,6 +248,9 @@ impl Query {
 
     #[inline]
     fn global(&self, u: f64, v: f64) -> [f64; 2] {
+        if self.full {
+            return [self.p[0] + u, self.p[1] + v];
+        }
         [
             self.p[0] + u * self.eu[0] + v * self.ev[0],
             self.p[1] + u * self.eu[1] + v * self.ev[1],
@@ -630,6 +660,11 @@ pub struct Sweeper {
     /// point is usually a neighbour, so listing its events in this order
     /// first leaves the sort little to do.
     order: Vec<u32>,
+    /// The same order by code (index in `events`), and the pieces it was
+    /// for (`edge * 4 + part * 2` each).
+    codes: Vec<u32>,
+    prev_shape: Vec<u32>,
+    shape: Vec<u32>,
     /// Per event id: `(generation, index in events)`.
     slot: Vec<(u32, u32)>,
     sorted: Vec<Event>,
@@ -671,21 +706,17 @@ impl Sweeper {
         if self.pieces.is_empty() {
             return;
         }
+        self.shape.clear();
         for (id, pc) in self.pieces.iter().enumerate() {
             let part = u32::from(id > 0 && self.pieces[id - 1].edge == pc.edge);
             let base = pc.edge * 4 + part * 2;
-            self.events.push(Event {
-                key: pc.ka,
-                id: base + 1,
-                code: 2 * id as u32,
-            });
-            self.events.push(Event {
-                key: pc.kb,
-                id: base,
-                code: 2 * id as u32 + 1,
-            });
+            self.events.push(Event::new(pc.ka, base + 1, 2 * id as u32));
+            self.events.push(Event::new(pc.kb, base, 2 * id as u32 + 1));
+            self.shape.push(base);
         }
-        self.sort_events(edges.len());
+        let same = self.shape == self.prev_shape;
+        std::mem::swap(&mut self.shape, &mut self.prev_shape);
+        self.sort_events(edges.len(), same);
         self.active.clear();
         let n = self.events.len();
         let mut i = 0;
@@ -697,7 +728,7 @@ impl Sweeper {
         // Nearest piece of the previous interval.
         let mut current: Option<u32> = None;
         while i < n {
-            let key = self.events[i].key;
+            let key = self.events[i].key();
             let vertex = {
                 let ev = self.events[i];
                 let pc = &self.pieces[ev.piece() as usize];
@@ -705,7 +736,7 @@ impl Sweeper {
             };
             self.fresh.clear();
             let mut lost_nearest = false;
-            while i < n && self.events[i].key == key {
+            while i < n && self.events[i].key() == key {
                 let ev = self.events[i];
                 let piece = ev.piece();
                 if ev.insert() {
@@ -730,12 +761,25 @@ impl Sweeper {
             // not cross, so among pieces active on both sides of an event
             // the nearer stays nearer: unless the nearest piece just ended,
             // only the pieces that just started can take its place.
-            let nearest = if i < n && !self.active.is_empty() {
-                let (du, dv) = diamond_dir(0.5 * (key + self.events[i].key));
+            let nearest = if i >= n || self.active.is_empty() {
+                None
+            } else if !lost_nearest && self.fresh.is_empty() && current.is_some() {
+                // Only pieces behind the nearest ended: it stays nearest.
+                current
+            } else {
+                let (du, dv) = diamond_dir(0.5 * (key + self.events[i].key()));
+                // Compared along one ray, so any positive multiple of the
+                // ray parameter will do: `t |du| |dv|` needs no division.
+                // An axis-parallel ray keeps the plain parameter.
+                let (su, sv) = if du == 0.0 || dv == 0.0 {
+                    (1.0 / du.abs(), 1.0 / dv.abs())
+                } else {
+                    (dv.abs(), du.abs())
+                };
                 let mut best = u32::MAX;
                 let mut best_t = f64::INFINITY;
                 let mut consider = |a: u32| {
-                    let t = self.pieces[a as usize].t(du, dv);
+                    let t = self.pieces[a as usize].t_scaled(su, sv);
                     if t < best_t || (t == best_t && a < best) {
                         best_t = t;
                         best = a;
@@ -755,8 +799,6 @@ impl Sweeper {
                     }
                 }
                 Some(best)
-            } else {
-                None
             };
             current = nearest;
             if open.map(|o| o.0) != nearest {
@@ -774,9 +816,50 @@ impl Sweeper {
     /// Sorts `events` by key, ties by id: a total order, so the result does
     /// not depend on the order they came in. They are first laid out in the
     /// previous sweep's order (neighbouring points see nearly the same
-    /// angular order), which the stable sort, adaptive to runs, then only
-    /// has to patch up.
-    fn sort_events(&mut self, edges: usize) {
+    /// angular order), which an insertion sort then only has to patch up.
+    ///
+    /// `same`: the pieces are those of the previous sweep, in the same order
+    /// (neighbours usually see the same edges, split the same way), so an
+    /// event's index is that of its counterpart in the previous sweep.
+    fn sort_events(&mut self, edges: usize, same: bool) {
+        let keys = &mut self.sorted;
+        keys.clear();
+        if same && self.codes.len() == self.events.len() {
+            keys.extend(self.codes.iter().map(|&c| self.events[c as usize]));
+        } else {
+            self.lay_out_by_id(edges);
+        }
+        let keys = &mut self.sorted;
+        // Insertion sort: linear in the number of events plus the number
+        // of pairs out of order, which is small between neighbours. Past a
+        // budget of moves, a general sort finishes the job.
+        let budget = 4 * keys.len() + 64;
+        let mut moves = 0;
+        let mut i = 1;
+        while i < keys.len() && moves <= budget {
+            let x = keys[i];
+            let mut j = i;
+            while j > 0 && x < keys[j - 1] {
+                keys[j] = keys[j - 1];
+                j -= 1;
+            }
+            moves += i - j;
+            keys[j] = x;
+            i += 1;
+        }
+        if i < keys.len() {
+            keys.sort_unstable();
+        }
+        self.order.clear();
+        self.order.extend(keys.iter().map(|k| k.id()));
+        self.codes.clear();
+        self.codes.extend(keys.iter().map(|k| k.code()));
+        std::mem::swap(&mut self.events, &mut self.sorted);
+    }
+
+    /// Lays `events` out in the previous sweep's order by id (the events
+    /// of pieces that are new come last), into `sorted`.
+    fn lay_out_by_id(&mut self, edges: usize) {
         if self.slot.len() < edges * 4 {
             self.slot = vec![(0, 0); edges * 4];
             self.sweep_generation = 0;
@@ -788,12 +871,11 @@ impl Sweeper {
         }
         let g = self.sweep_generation;
         for (i, ev) in self.events.iter().enumerate() {
-            self.slot[ev.id as usize] = (g, i as u32);
+            self.slot[ev.id() as usize] = (g, i as u32);
         }
         // Laid out in the previous order first, then the new ones; ties
         // between equal keys and ids (a repeated candidate) by `code`.
         let keys = &mut self.sorted;
-        keys.clear();
         for &id in &self.order {
             if let Some(&(sg, i)) = self.slot.get(id as usize)
                 && sg == g
@@ -804,7 +886,7 @@ impl Sweeper {
             }
         }
         for ev in &self.events {
-            if self.slot[ev.id as usize].0 == g {
+            if self.slot[ev.id() as usize].0 == g {
                 keys.push(*ev);
             }
         }
@@ -813,29 +895,6 @@ impl Sweeper {
             keys.clear();
             keys.extend_from_slice(&self.events);
         }
-        // Insertion sort: linear in the number of events plus the number
-        // of pairs out of order, which is small between neighbours. Past a
-        // budget of moves, a general sort finishes the job.
-        let budget = 4 * keys.len() + 64;
-        let mut moves = 0;
-        let mut i = 1;
-        while i < keys.len() && moves <= budget {
-            let x = keys[i];
-            let mut j = i;
-            while j > 0 && x.order(&keys[j - 1]).is_lt() {
-                keys[j] = keys[j - 1];
-                j -= 1;
-            }
-            moves += i - j;
-            keys[j] = x;
-            i += 1;
-        }
-        if i < keys.len() {
-            keys.sort_unstable_by(Event::order);
-        }
-        self.order.clear();
-        self.order.extend(keys.iter().map(|k| k.id));
-        std::mem::swap(&mut self.events, &mut self.sorted);
     }
 
     /// Adds edge `ei`'s visible pieces to the coverage, once per walk.
