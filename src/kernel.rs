@@ -205,8 +205,9 @@ pub fn atan(x: f64) -> f64 {
 /// polynomial in `s = f / (2 + f)`; `k ln 2` is added in two parts.
 #[inline(always)]
 pub fn ln_pos(x: f64) -> f64 {
-    const LN2_HI: f64 = 6.931_471_803_691_238_2e-1;
-    const LN2_LO: f64 = 1.908_214_929_270_587_7e-10;
+    // ln 2 in two parts, the high one with its low 32 bits zero.
+    const LN2_HI: f64 = f64::from_bits(0x3fe6_2e42_fee0_0000);
+    const LN2_LO: f64 = f64::from_bits(0x3dea_39ef_3579_3c76);
     const LG: [f64; 7] = [
         6.666_666_666_666_735e-1,
         3.999_999_999_940_942e-1,
