@@ -125,9 +125,8 @@ impl Piece {
 
 /// A sweep event: where a piece starts or ends. Compact (16 bytes), since
 /// every query sorts a few hundred of them, and packed so that comparing
-/// two events is one integer comparison: the key's bits (keys are finite
-/// and not negative, so their bits order like their values), then the id,
-/// then the code.
+/// two events is one integer comparison: the key (its bits mapped to the
+/// order of [`f64::total_cmp`]), then the id, then the code.
 ///
 /// * id: `edge * 4 + part * 2 + insert` (`part` 1 for the second half of
 ///   an edge split at the cut ray): breaks ties between equal keys the same
@@ -140,14 +139,24 @@ struct Event(u128);
 impl Event {
     #[inline]
     fn new(key: f64, id: u32, code: u32) -> Event {
-        // `+ 0.0` turns a key of -0 into +0, whose bits sort first.
-        let bits = (key + 0.0).to_bits();
-        Event(((bits as u128) << 64) | ((id as u128) << 32) | code as u128)
+        Event(((Self::ordered(key.to_bits()) as u128) << 64) | ((id as u128) << 32) | code as u128)
+    }
+
+    /// Maps a float's bits to an unsigned integer in the order of
+    /// [`f64::total_cmp`] (the same transform): a key of NaN, which a query
+    /// point on an edge's end can give, sorts where it always did.
+    /// [`Event::key`] undoes it.
+    #[inline]
+    fn ordered(bits: u64) -> u64 {
+        let b = bits as i64;
+        ((b ^ ((((b >> 63) as u64) >> 1) as i64)) as u64) ^ (1 << 63)
     }
 
     #[inline]
     fn key(&self) -> f64 {
-        f64::from_bits((self.0 >> 64) as u64)
+        // Undo `ordered`: restore the sign bit, then the same transform.
+        let b = (((self.0 >> 64) as u64) ^ (1 << 63)) as i64;
+        f64::from_bits((b ^ ((((b >> 63) as u64) >> 1) as i64)) as u64)
     }
 
     #[inline]
