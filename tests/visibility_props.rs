@@ -56,6 +56,18 @@ fn first_hit(edges: &[Edge], p: [f64; 2], d: [f64; 2]) -> Option<(u32, f64)> {
     best
 }
 
+/// The spans wider than rounding. Where two vertices are collinear with
+/// the query point, their pseudo-angles may differ by an ulp, and the sweep
+/// and the walk may then disagree on a sliver between them (an axis length
+/// of about 1e-15, found by this test): that is rounding, not a difference.
+fn wide(spans: &[Span]) -> Vec<Span> {
+    spans
+        .iter()
+        .copied()
+        .filter(|s| s.s1 - s.s0 > 1e-9)
+        .collect()
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(150))]
 
@@ -72,6 +84,7 @@ proptest! {
                 let (mut a, mut b): (Vec<Span>, Vec<Span>) = (vec![], vec![]);
                 sw.sweep(&g.edges, &all, p, View::Full, comp, &mut a);
                 sw.walk(&g.edges, &blocks, p, View::Full, comp, f64::INFINITY, &[], &mut b);
+                let (a, b) = (wide(&a), wide(&b));
                 prop_assert_eq!(a.len(), b.len(), "pixel ({}, {})", x, y);
                 for (s, t) in a.iter().zip(&b) {
                     prop_assert_eq!(s.edge, t.edge);
@@ -111,6 +124,7 @@ proptest! {
             let (mut a, mut b): (Vec<Span>, Vec<Span>) = (vec![], vec![]);
             sw.sweep(&g.edges, &all, p, View::Half(e.normal), e.component, &mut a);
             sw.walk(&g.edges, &blocks, p, View::Half(e.normal), e.component, f64::INFINITY, &[], &mut b);
+            let (a, b) = (wide(&a), wide(&b));
             prop_assert_eq!(a.len(), b.len());
             for (s, t) in a.iter().zip(&b) {
                 prop_assert_eq!(s.edge, t.edge);
