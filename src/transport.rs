@@ -183,12 +183,6 @@ pub fn point_factors(
     culled
 }
 
-/// Distance from point `p` to edge `e`.
-#[inline]
-pub fn edge_distance(e: &Edge, p: [f64; 2]) -> f64 {
-    edge_distance_sq(e, p).sqrt()
-}
-
 /// Is edge `e` farther than `radius` from point `p`? Compared squared, so
 /// the many per-pixel tests need no square root.
 #[inline]

@@ -143,20 +143,25 @@ impl Event {
     }
 
     /// Maps a float's bits to an unsigned integer in the order of
-    /// [`f64::total_cmp`] (the same transform): a key of NaN, which a query
-    /// point on an edge's end can give, sorts where it always did.
-    /// [`Event::key`] undoes it.
+    /// [`f64::total_cmp`] (its transform, then the sign bit flipped so that
+    /// an unsigned comparison agrees): a key of NaN, which a query point on
+    /// an edge's end can give, sorts where it always did.
     #[inline]
     fn ordered(bits: u64) -> u64 {
-        let b = bits as i64;
-        ((b ^ ((((b >> 63) as u64) >> 1) as i64)) as u64) ^ (1 << 63)
+        Self::flip_magnitude(bits) ^ (1 << 63)
+    }
+
+    /// `total_cmp`'s transform: the magnitude bits of negative numbers
+    /// inverted. It keeps the sign bit, so it is its own inverse.
+    #[inline]
+    fn flip_magnitude(bits: u64) -> u64 {
+        bits ^ ((((bits as i64) >> 63) as u64) >> 1)
     }
 
     #[inline]
     fn key(&self) -> f64 {
-        // Undo `ordered`: restore the sign bit, then the same transform.
-        let b = (((self.0 >> 64) as u64) ^ (1 << 63)) as i64;
-        f64::from_bits((b ^ ((((b >> 63) as u64) >> 1) as i64)) as u64)
+        // Undo `ordered`: restore the sign bit, then undo the transform.
+        f64::from_bits(Self::flip_magnitude(((self.0 >> 64) as u64) ^ (1 << 63)))
     }
 
     #[inline]
