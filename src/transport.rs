@@ -468,7 +468,12 @@ pub fn for_each_visibility<F>(
 where
     F: Fn(usize, &[Span]) + Sync,
 {
-    let tree = TileTree::new(geometry);
+    // A floor gather asks at pixel centres only: its regions cull more.
+    let centres = pos
+        .iter()
+        .zip(pixel)
+        .all(|(p, px)| p[0] == px[0] as f64 + 0.5 && p[1] == px[1] as f64 + 0.5);
+    let tree = TileTree::new(geometry, centres);
     let blocks = Blocks::new(geometry);
     let grid = PointGrid::new(geometry.width, geometry.height, tree.leaf as usize, pixel);
     let unreached = std::sync::atomic::AtomicU64::new(0);

@@ -26,9 +26,11 @@
 //! of candidate edges, refined down a quadtree: an edge is dropped only when
 //! that is proven — it faces away from the whole region, its free side
 //! belongs to another region of free space, it lies beyond the falloff reach,
-//! or one straight wall run blocks every segment from the region to it (an
-//! exact test in integer arithmetic). Regions whose list stays long use the
-//! walk instead of the sweep.
+//! or one straight wall run ([`run_hides`]) or one rectangle of solid pixels
+//! ([`box_hides`]) blocks every segment from the region to it (exact tests in
+//! integer arithmetic). For a floor gather the region is its pixel centres,
+//! for form factors its whole pixels ([`Zone`]). Regions whose list stays
+//! long use the walk instead of the sweep.
 
 use crate::geometry::{Edge, Geometry, Normal, Run};
 
@@ -1115,37 +1117,108 @@ impl Rect {
     }
 }
 
-/// True when every segment from a point of the closed rectangle `r` to a
-/// point of edge `e` crosses the straight run `s` (touching counts): then no
-/// point of `r` sees any part of `e`. Exact integer arithmetic.
+/// The closed rectangle that holds every query point of a region, in half
+/// pixels (all coordinates doubled, so that the tests below stay exact in
+/// integers): the region's whole pixels, sides included, or only their
+/// centres when every query point is a pixel centre (a floor gather).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Zone {
+    pub x0: i64,
+    pub y0: i64,
+    pub x1: i64,
+    pub y1: i64,
+}
+
+impl Zone {
+    /// The zone of the pixels of `r`; `centres`: of their centres only.
+    pub fn of(r: Rect, centres: bool) -> Zone {
+        let i = i64::from(centres);
+        Zone {
+            x0: 2 * r.x0 as i64 + i,
+            y0: 2 * r.y0 as i64 + i,
+            x1: 2 * r.x1 as i64 - i,
+            y1: 2 * r.y1 as i64 - i,
+        }
+    }
+
+    /// The closed square of the pixels of `r`.
+    fn solid(r: &Rect) -> Zone {
+        Zone::of(*r, false)
+    }
+
+    /// The closed segment of edge `e`, as a degenerate rectangle.
+    fn edge(e: &Edge) -> Zone {
+        Zone {
+            x0: 2 * e.a[0].min(e.b[0]) as i64,
+            y0: 2 * e.a[1].min(e.b[1]) as i64,
+            x1: 2 * e.a[0].max(e.b[0]) as i64,
+            y1: 2 * e.a[1].max(e.b[1]) as i64,
+        }
+    }
+
+    fn corners(&self) -> [(i64, i64); 4] {
+        [
+            (self.x0, self.y0),
+            (self.x1, self.y0),
+            (self.x0, self.y1),
+            (self.x1, self.y1),
+        ]
+    }
+
+    /// Do the two closed rectangles share a point?
+    fn meets(&self, o: &Zone) -> bool {
+        self.x0 <= o.x1 && o.x0 <= self.x1 && self.y0 <= o.y1 && o.y0 <= self.y1
+    }
+
+    /// Does the closed segment `p q` share a point with the closed rectangle?
+    /// Their bounding boxes overlap and the rectangle's corners are not all
+    /// strictly on one side of the segment's line (separating axes).
+    fn meets_segment(&self, p: (i64, i64), q: (i64, i64)) -> bool {
+        if p.0.min(q.0) > self.x1
+            || p.0.max(q.0) < self.x0
+            || p.1.min(q.1) > self.y1
+            || p.1.max(q.1) < self.y0
+        {
+            return false;
+        }
+        let (dx, dy) = (q.0 - p.0, q.1 - p.1);
+        let side = self
+            .corners()
+            .map(|(x, y)| (dx * (y - p.1) - dy * (x - p.0)).signum());
+        !(side.iter().all(|&s| s > 0) || side.iter().all(|&s| s < 0))
+    }
+}
+
+/// True when every segment from a point of zone `z` to a point of edge `e`
+/// crosses the straight run `s` (touching counts): then no point of `z` sees
+/// any part of `e`. Exact integer arithmetic.
 ///
-/// Each such segment crosses the run's line once (the rectangle is on the
-/// front side, the edge behind). The crossing coordinate is a
-/// linear-fractional function of each endpoint, so over the rectangle and the
-/// edge its extremes are reached at their vertices: checking the 4 x 2 vertex
-/// pairs is exact.
-pub fn run_hides(r: &Rect, e: &Edge, s: &Run) -> bool {
+/// Each such segment crosses the run's line once (the zone is on the front
+/// side, the edge behind). The crossing coordinate is a linear-fractional
+/// function of each endpoint, so over the zone and the edge its extremes are
+/// reached at their vertices: checking the 4 x 2 vertex pairs is exact.
+pub fn run_hides(z: &Zone, e: &Edge, s: &Run) -> bool {
     let vertical = s.normal.is_vertical_edge();
     let sign: i64 = if matches!(s.normal, Normal::Right | Normal::Down) {
         1
     } else {
         -1
     };
-    // (perpendicular coordinate, along coordinate) of a point.
+    // (perpendicular coordinate, along coordinate) of a point, in half pixels.
     let split = |x: i64, y: i64| if vertical { (x, y) } else { (y, x) };
-    let line = s.line as i64;
-    let corners = [(r.x0, r.y0), (r.x1, r.y0), (r.x0, r.y1), (r.x1, r.y1)].map(|(x, y)| {
-        let (pp, al) = split(x as i64, y as i64);
+    let line = 2 * s.line as i64;
+    let corners = z.corners().map(|(x, y)| {
+        let (pp, al) = split(x, y);
         ((pp - line) * sign, al)
     });
     let ends = [e.a, e.b].map(|q| {
-        let (pp, al) = split(q[0] as i64, q[1] as i64);
+        let (pp, al) = split(2 * q[0] as i64, 2 * q[1] as i64);
         ((pp - line) * sign, al)
     });
     if corners.iter().any(|c| c.0 < 0) || ends.iter().any(|q| q.0 > 0) {
         return false;
     }
-    let (lo, hi) = (s.lo as i64, s.hi as i64);
+    let (lo, hi) = (2 * s.lo as i64, 2 * s.hi as i64);
     for &(dc, cu) in &corners {
         for &(dy, yu) in &ends {
             let den = dc - dy;
@@ -1161,6 +1234,135 @@ pub fn run_hides(r: &Rect, e: &Edge, s: &Run) -> bool {
     true
 }
 
+/// True when every segment from a point of zone `z` to a point of edge `e`
+/// meets the solid rectangle `s` (pixels), which touches neither: then no
+/// point of `z` sees any part of `e`. Exact integer arithmetic.
+///
+/// The points `y` from which every segment to `z` meets `s` form a convex
+/// set (for each point `p` of `z`, the points whose segment to `p` meets `s`
+/// form a convex shadow, and this set is their intersection; for fixed `y`
+/// the same holds with the roles swapped). So it is enough that the segments
+/// between the 4 corners of `z` and the 2 ends of `e` meet `s`. A segment
+/// from a query point that meets `s` enters the solid, crossing an edge
+/// before it reaches `e` (except along at most the two directions that only
+/// graze `s`, which carry no light), so `e` is hidden.
+pub fn box_hides(z: &Zone, e: &Edge, s: &Rect) -> bool {
+    let sz = Zone::solid(s);
+    if z.meets(&sz) || Zone::edge(e).meets(&sz) {
+        return false;
+    }
+    z.corners().iter().all(|&c| {
+        [e.a, e.b]
+            .iter()
+            .all(|y| sz.meets_segment(c, (2 * y[0] as i64, 2 * y[1] as i64)))
+    })
+}
+
+/// The solid pixels as rectangles, to prove edges hidden with [`box_hides`]:
+/// each row's runs of solid pixels, merged with the run right above when
+/// it spans the same columns (a rectangular obstacle is one box).
+struct SolidBoxes {
+    rects: Vec<Rect>,
+    /// The boxes behind edge `e`: `list[start[e]..start[e + 1]]`.
+    start: Vec<u32>,
+    list: Vec<u32>,
+}
+
+impl SolidBoxes {
+    fn new(g: &Geometry) -> SolidBoxes {
+        let (w, h) = (g.width, g.height);
+        let solid = |x: usize, y: usize| g.components[y * w + x] == u32::MAX;
+        let mut rects: Vec<Rect> = Vec::new();
+        let mut box_of = vec![u32::MAX; w * h];
+        // Per start column: (end column, box) of a run in the row above.
+        let mut above: Vec<(usize, u32)> = vec![(0, u32::MAX); w];
+        let mut here: Vec<(usize, u32)> = vec![(0, u32::MAX); w];
+        for y in 0..h {
+            here.fill((0, u32::MAX));
+            let mut x = 0;
+            while x < w {
+                if !solid(x, y) {
+                    x += 1;
+                    continue;
+                }
+                let x0 = x;
+                while x < w && solid(x, y) {
+                    x += 1;
+                }
+                let id = match above[x0] {
+                    (x1, id) if id != u32::MAX && x1 == x => {
+                        rects[id as usize].y1 = y as i32 + 1;
+                        id
+                    }
+                    _ => {
+                        rects.push(Rect {
+                            x0: x0 as i32,
+                            y0: y as i32,
+                            x1: x as i32,
+                            y1: y as i32 + 1,
+                        });
+                        rects.len() as u32 - 1
+                    }
+                };
+                here[x0] = (x, id);
+                box_of[y * w + x0..y * w + x].fill(id);
+            }
+            std::mem::swap(&mut above, &mut here);
+        }
+        let mut start = vec![0u32];
+        let mut list = Vec::new();
+        for e in &g.edges {
+            let (lo, hi) = e.extent();
+            let from = list.len();
+            for s in lo as i32..hi as i32 {
+                let p = e.solid_pixel_at(s);
+                let b = box_of[p[1] as usize * w + p[0] as usize];
+                // Along a straight line, each box is one stretch.
+                if list.len() == from || list.last() != Some(&b) {
+                    list.push(b);
+                }
+            }
+            start.push(list.len() as u32);
+        }
+        SolidBoxes { rects, start, list }
+    }
+
+    fn behind(&self, e: u32) -> &[u32] {
+        &self.list[self.start[e as usize] as usize..self.start[e as usize + 1] as usize]
+    }
+}
+
+/// The arc of pseudo-angles that `points` span as seen from `q`, as
+/// `(start, extent)`, for points that lie within less than a half turn
+/// (pseudo-angle 2) of each other, as the corners of a box or the ends of
+/// an edge that do not hold `q` do.
+fn arc(q: [f64; 2], points: &[[f64; 2]]) -> (f64, f64) {
+    let a0 = diamond(points[0][0] - q[0], points[0][1] - q[1]);
+    let (mut lo, mut hi) = (0.0f64, 0.0f64);
+    for p in &points[1..] {
+        let mut d = diamond(p[0] - q[0], p[1] - q[1]) - a0;
+        if d > 2.0 {
+            d -= 4.0;
+        } else if d <= -2.0 {
+            d += 4.0;
+        }
+        lo = lo.min(d);
+        hi = hi.max(d);
+    }
+    ((a0 + lo).rem_euclid(4.0), hi - lo)
+}
+
+/// Does arc `outer` hold arc `inner` (with a margin for rounding: this only
+/// picks which boxes to test exactly)?
+fn arc_holds(outer: (f64, f64), inner: (f64, f64)) -> bool {
+    const SLACK: f64 = 1e-9;
+    let mut d = (inner.0 - outer.0).rem_euclid(4.0);
+    if d > 4.0 - SLACK {
+        d -= 4.0;
+    }
+    d >= -SLACK && d + inner.1 <= outer.1 + SLACK
+}
+
 /// Query points per rectangle, to weigh culled pairs (0: nothing to do there).
 pub type Count<'a> = &'a (dyn Fn(Rect) -> u64 + Sync);
 
@@ -1171,6 +1373,10 @@ pub struct TileTree<'g> {
     pub leaf: i32,
     /// Bounding box of each free-space component.
     comp_bbox: Vec<Rect>,
+    /// Every query point is the centre of its pixel: regions are culled
+    /// for their pixel centres only (a tighter zone, see [`Zone`]).
+    centres: bool,
+    boxes: SolidBoxes,
 }
 
 /// The free regions of one leaf tile: its free pixels split into pieces that
@@ -1293,7 +1499,10 @@ impl<'g> TileTree<'g> {
         }
     }
 
-    pub fn new(geometry: &'g Geometry) -> Self {
+    /// `centres`: every query point will be the centre of its pixel (a
+    /// floor gather); otherwise points may lie anywhere on their pixel,
+    /// sides included (points on edges, for form factors).
+    pub fn new(geometry: &'g Geometry, centres: bool) -> Self {
         let mut comp_bbox = vec![
             Rect {
                 x0: i32::MAX,
@@ -1320,6 +1529,8 @@ impl<'g> TileTree<'g> {
             geometry,
             leaf: Self::LEAF,
             comp_bbox,
+            centres,
+            boxes: SolidBoxes::new(geometry),
         }
     }
 
@@ -1430,11 +1641,16 @@ impl<'g> TileTree<'g> {
         });
     }
 
-    /// Drops the candidates that one straight run provably hides from all of
-    /// `r`. Occluders are looked for among the runs that a free point near the
-    /// middle of `r` sees in the direction of the candidate.
+    /// Drops the candidates that one straight run ([`run_hides`]) or one
+    /// solid box ([`box_hides`]) provably hides from every query point of
+    /// region `r`. Runs are looked for among those that a free point near
+    /// the middle of `r` sees in the direction of the candidate; boxes among
+    /// those behind the candidates whose arc, seen from that point, holds
+    /// the candidate's arc (a box that hides an edge from the whole region
+    /// hides it from that point too).
     fn cull_hidden(&self, r: Rect, cands: Vec<u32>) -> Vec<u32> {
         let g = self.geometry;
+        let zone = Zone::of(r, self.centres);
         // Free pixel nearest the centre, per component present in the tile.
         let (cx2, cy2) = (r.x0 + r.x1, r.y0 + r.y1);
         let mut reps: Vec<(u32, i64, [i32; 2])> = Vec::new();
@@ -1458,6 +1674,8 @@ impl<'g> TileTree<'g> {
         let mut sweeper = Sweeper::new();
         let mut spans = Vec::new();
         let mut keep = vec![true; cands.len()];
+        let mut pool: Vec<u32> = Vec::new();
+        let mut arcs: Vec<(u32, (f64, f64))> = Vec::new();
         for &(comp, _, px) in &reps {
             let q = [px[0] as f64 + 0.5, px[1] as f64 + 0.5];
             spans.clear();
@@ -1494,10 +1712,43 @@ impl<'g> TileTree<'g> {
                         continue;
                     }
                     tried[t] = run;
-                    if run_hides(&r, e, &g.runs[run as usize]) {
+                    if run_hides(&zone, e, &g.runs[run as usize]) {
                         keep[i] = false;
                         break;
                     }
+                }
+            }
+            // Boxes behind this component's candidates that touch neither
+            // the zone nor (checked in box_hides) the edge, with their arcs.
+            pool.clear();
+            for &ei in &cands {
+                if g.edges[ei as usize].component == comp {
+                    pool.extend_from_slice(self.boxes.behind(ei));
+                }
+            }
+            pool.sort_unstable();
+            pool.dedup();
+            arcs.clear();
+            for &b in &pool {
+                let s = &self.boxes.rects[b as usize];
+                if zone.meets(&Zone::solid(s)) {
+                    continue;
+                }
+                let (x0, y0, x1, y1) = (s.x0 as f64, s.y0 as f64, s.x1 as f64, s.y1 as f64);
+                arcs.push((b, arc(q, &[[x0, y0], [x1, y0], [x0, y1], [x1, y1]])));
+            }
+            for (i, &ei) in cands.iter().enumerate() {
+                let e = &g.edges[ei as usize];
+                if e.component != comp || !keep[i] {
+                    continue;
+                }
+                let a = [e.a[0] as f64, e.a[1] as f64];
+                let b = [e.b[0] as f64, e.b[1] as f64];
+                let ea = arc(q, &[a, b]);
+                if arcs.iter().any(|&(bx, ba)| {
+                    arc_holds(ba, ea) && box_hides(&zone, e, &self.boxes.rects[bx as usize])
+                }) {
+                    keep[i] = false;
                 }
             }
         }
