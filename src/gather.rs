@@ -16,10 +16,10 @@ use std::f64::consts::TAU;
 
 use crate::geometry::{Edge, Geometry};
 use crate::kernel::Reach;
-use crate::kernel::{Falloff, GatherLine};
+use crate::kernel::{Falloff, GatherLine, GatherPoints};
 use crate::level::{Cell, Level};
 use crate::transport::{Patches, for_each_visibility};
-use crate::transport::{VisitStats, beyond};
+use crate::transport::{VisitStats, wanted_reach};
 use crate::visibility::{Span, View};
 
 /// Radiosity in a form the gather can use: `components` values per edge
@@ -277,11 +277,10 @@ fn node_range(lo: f64, hi: f64, h: f64, n: usize, lv: u32, i: usize) -> (f64, f6
     )
 }
 
-/// What gathering skipped or merged, summed over pixels.
+/// What gathering merged, summed over pixels (what it culled, the
+/// visibility query counts: [`VisitStats`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct GatherCounts {
-    /// Visible spans of edges beyond their falloff reach, not gathered.
-    pub culled: u64,
     /// Pieces of reflected light gathered ([`PatchTree`] nodes) ...
     pub pieces: u64,
     /// ... and the patch pieces they stand for (equal when nothing merged).
@@ -290,14 +289,47 @@ pub struct GatherCounts {
 
 impl std::ops::AddAssign for GatherCounts {
     fn add_assign(&mut self, o: GatherCounts) {
-        self.culled += o.culled;
         self.pieces += o.pieces;
         self.patch_pieces += o.patch_pieces;
     }
 }
 
+/// Reusable buffers of [`pixel_light`] (one per thread, so that a pixel
+/// allocates nothing once they have grown). A pixel's visible spans are
+/// first turned into the points at which the closed forms are needed, each
+/// with its own line; those are then evaluated together, in loops without
+/// branches that vectorise ([`GatherPoints`]), and summed.
+#[derive(Default)]
+pub struct PixelScratch {
+    /// Emitting spans: their starts (with their lines), their ends, their
+    /// edges, and the integrals between.
+    em: GatherPoints,
+    em_end: Vec<f64>,
+    em_edge: Vec<u32>,
+    em_g: Vec<f64>,
+    /// Reflected light: for every reflecting span its start, then the end
+    /// of each of its pieces; the antiderivatives there.
+    pts: GatherPoints,
+    f: Vec<f64>,
+    l: Vec<f64>,
+    /// Per piece: its tree node, the index of its end point (it starts at
+    /// the point before), and the foot of its span.
+    node: Vec<u32>,
+    end: Vec<u32>,
+    foot: Vec<f64>,
+    /// Tree nodes still to visit: (level, index in the level).
+    stack: Vec<(u32, u32)>,
+}
+
+impl PixelScratch {
+    pub fn new() -> Self {
+        Self::default()
+    }
+}
+
 /// Adds to `acc` the light that pixel centre `p` receives from its visible
-/// spans; spans of edges farther than their reach are skipped and counted.
+/// spans (all of them: the falloff reach is applied by the visibility query,
+/// [`for_each_visibility`], which passes on only the spans within reach).
 /// Reflected light is gathered from `tree`'s nodes ([`PatchTree`]).
 #[allow(clippy::too_many_arguments)]
 pub fn pixel_light(
@@ -307,31 +339,25 @@ pub fn pixel_light(
     tree: &PatchTree,
     falloff: Option<Falloff>,
     kernel: Kernel,
-    reach: &Reach,
     p: [f64; 2],
     spans: &[Span],
     acc: &mut [f64],
+    scratch: &mut PixelScratch,
 ) -> GatherCounts {
     let k = rad.components;
-    let mut culled = 0;
-    // Scratch for reflected_span, initialised once per point, not per span.
-    let mut scratch = Scratch {
-        t: [0.0; BATCH + 1],
-        f: [0.0; BATCH + 1],
-        l: [0.0; BATCH + 1],
-        nodes: [0; BATCH],
-        stack: [(0, 0); STACK],
-        pieces: 0,
-        patch_pieces: 0,
-    };
+    let mut counts = GatherCounts::default();
+    let sc = scratch;
+    sc.em.clear();
+    sc.em_end.clear();
+    sc.em_edge.clear();
+    sc.pts.clear();
+    sc.node.clear();
+    sc.end.clear();
+    sc.foot.clear();
     for span in spans {
         let ei = span.edge as usize;
         let e = &edges[ei];
         if !(rad.edge_emits[ei] || rad.edge_reflects[ei]) {
-            continue;
-        }
-        if beyond(e, p, reach.radius[ei]) {
-            culled += 1;
             continue;
         }
         if kernel == Kernel::Paper {
@@ -346,43 +372,39 @@ pub fn pixel_light(
         };
         let line = GatherLine::new(d, falloff);
         if rad.edge_emits[ei] {
-            let g = line.between(span.s0 - foot, span.s1 - foot) / TAU;
-            for c in 0..k {
-                acc[c] += rad.edge_emission[ei * k + c] * g;
-            }
+            sc.em.push(span.s0 - foot, &line);
+            sc.em_end.push(span.s1 - foot);
+            sc.em_edge.push(span.edge);
         }
         if rad.edge_reflects[ei] {
             let near = Near { d2: d * d, foot };
-            reflected_span(patches, tree, edges, span, &line, &near, acc, &mut scratch);
+            reflected_pieces(patches, tree, edges, span, &line, &near, sc, &mut counts);
         }
     }
-    GatherCounts {
-        culled,
-        pieces: scratch.pieces,
-        patch_pieces: scratch.patch_pieces,
+    let fall = falloff.is_some();
+    // Uniform emission: one integral per emitting span.
+    sc.em.between(&sc.em_end, fall, &mut sc.em_g);
+    for (&ei, &g) in sc.em_edge.iter().zip(&sc.em_g) {
+        let g = g / TAU;
+        for c in 0..k {
+            acc[c] += rad.edge_emission[ei as usize * k + c] * g;
+        }
     }
-}
-
-/// Pieces of one visible span handled per batch of [`reflected_span`].
-const BATCH: usize = 32;
-
-/// Room for the tree walk of [`reflected_span`], with no allocation per
-/// pixel: patch indices are `u32`, so a tree is at most 33 levels deep.
-const STACK: usize = 64;
-
-/// Buffers of [`reflected_span`]: piece end offsets, antiderivatives, nodes.
-struct Scratch {
-    t: [f64; BATCH + 1],
-    f: [f64; BATCH + 1],
-    l: [f64; BATCH + 1],
-    nodes: [usize; BATCH],
-    /// Tree nodes still to visit: (level, index in the level). A walk pops
-    /// one node and pushes at most two per level down, so it never holds
-    /// more than the tree's depth plus one.
-    stack: [(u32, u32); STACK],
-    /// Pieces gathered and the patch pieces they stand for.
-    pieces: u64,
-    patch_pieces: u64,
+    // Reflected light, linear along each piece.
+    sc.pts.antiderivatives(fall, &mut sc.f, &mut sc.l);
+    let (f, l) = (&sc.f, &sc.l);
+    let k = tree.k;
+    for ((&nd, &i), &foot) in sc.node.iter().zip(&sc.end).zip(&sc.foot) {
+        let (nd, i) = (nd as usize, i as usize);
+        let (g0, g1) = ((f[i] - f[i - 1]) / TAU, (l[i] - l[i - 1]) / TAU);
+        // Express B(s) = mean + slope (s - mid) in t = s - foot.
+        let mid = tree.mid[nd];
+        for c in 0..k {
+            let g = tree.slope[nd * k + c];
+            acc[c] += (tree.mean[nd * k + c] + g * (foot - mid)) * g0 + g * g1;
+        }
+    }
+    counts
 }
 
 /// Where the pixel is relative to the edge: its squared distance to the
@@ -402,77 +424,50 @@ impl Near {
     }
 }
 
-/// Adds the reflected light (`B - E`, linear along each piece) under
-/// `span`: the span is cut into pieces at the boundaries of the tree nodes
-/// that [`Near::whole`] accepts (down to single patches), in order along
-/// the edge. Their end offsets are collected in batches and the
-/// antiderivatives evaluated in tight loops ([`GatherLine::at_many`]), each
-/// piece boundary once.
+/// Cuts the reflected light (`B - E`, linear along each piece) under `span`
+/// into pieces at the boundaries of the tree nodes that [`Near::whole`]
+/// accepts (down to single patches), in order along the edge, and queues
+/// them in `sc`: the span's start point, then each piece's end point and
+/// its node. Each piece boundary is one point.
 #[allow(clippy::too_many_arguments)]
-fn reflected_span(
+fn reflected_pieces(
     patches: &Patches,
     tree: &PatchTree,
     edges: &[Edge],
     span: &Span,
     line: &GatherLine,
     near: &Near,
-    acc: &mut [f64],
-    scratch: &mut Scratch,
+    sc: &mut PixelScratch,
+    counts: &mut GatherCounts,
 ) {
-    let k = tree.k;
     let ei = span.edge as usize;
     let (lo, hi) = edges[ei].extent();
     let h = patches.step[ei];
     let n = patches.of_edge(ei).len();
     let levels = &tree.levels[tree.edge_levels[ei] as usize..tree.edge_levels[ei + 1] as usize];
     let foot = near.foot;
-    // t[0] is the start of the batch (the end of the previous one).
-    let Scratch {
-        t,
-        f,
-        l,
-        nodes,
-        stack,
-        pieces,
-        patch_pieces,
-    } = scratch;
-    let mut flush = |t: &[f64], nodes: &[usize], fresh: usize, f: &mut [f64], l: &mut [f64]| {
-        let m = nodes.len();
-        line.at_many(&t[fresh..=m], &mut f[fresh..=m], &mut l[fresh..=m]);
-        for j in 0..m {
-            let nd = nodes[j];
-            let (g0, g1) = ((f[j + 1] - f[j]) / TAU, (l[j + 1] - l[j]) / TAU);
-            // Express B(s) = mean + slope (s - mid) in t = s - foot.
-            let mid = tree.mid[nd];
-            for c in 0..k {
-                let g = tree.slope[nd * k + c];
-                acc[c] += (tree.mean[nd * k + c] + g * (foot - mid)) * g0 + g * g1;
-            }
-        }
+    sc.pts.push(span.s0 - foot, line);
+    let piece = |sc: &mut PixelScratch, node: usize, end: f64| {
+        sc.pts.push(end - foot, line);
+        sc.node.push(node as u32);
+        sc.end.push(sc.pts.len() as u32 - 1);
+        sc.foot.push(foot);
     };
-    t[0] = span.s0 - foot;
-    let mut m = 0;
-    // The first batch evaluates its start offset too; later ones carry it.
-    let mut fresh = 0;
     // Start at the smallest node holding the whole span: the patches of its
     // two ends first differ in bit `top - 1` of their index.
     let patch_of = |s: f64| (((s - lo) / h).floor().max(0.0) as usize).min(n - 1);
     let (j0, j1) = (patch_of(span.s0), patch_of(span.s1));
     if j0 == j1 {
         // Within one patch (most spans, on short edges): no walk.
-        nodes[0] = levels[0] as usize + j0;
-        t[1] = span.s1 - foot;
-        *pieces += 1;
-        *patch_pieces += 1;
-        flush(t, &nodes[..1], 0, f, l);
+        counts.pieces += 1;
+        counts.patch_pieces += 1;
+        piece(sc, levels[0] as usize + j0, span.s1);
         return;
     }
     let top = usize::BITS - (j0 ^ j1).leading_zeros();
-    stack[0] = (top, (j0 >> top) as u32);
-    let mut sp = 1;
-    while sp > 0 {
-        sp -= 1;
-        let (lv, i) = stack[sp];
+    sc.stack.clear();
+    sc.stack.push((top, (j0 >> top) as u32));
+    while let Some((lv, i)) = sc.stack.pop() {
         let (a, b) = node_range(lo, hi, h, n, lv, i as usize);
         let (a, b) = (a.max(span.s0), b.min(span.s1));
         let nd = levels[lv as usize] as usize + i as usize;
@@ -482,33 +477,18 @@ fn reflected_span(
             let below = levels[lv as usize] - levels[lv as usize - 1];
             let split = lo + ((2 * i as usize + 1) << (lv - 1)) as f64 * h;
             if 2 * i + 1 < below && split < span.s1 {
-                stack[sp] = (lv - 1, 2 * i + 1);
-                sp += 1;
+                sc.stack.push((lv - 1, 2 * i + 1));
             }
             if split > span.s0 {
-                stack[sp] = (lv - 1, 2 * i);
-                sp += 1;
+                sc.stack.push((lv - 1, 2 * i));
             }
             continue;
         }
         // Patches of the node under the span; the last piece ends the span.
         let (first, last) = ((i as usize) << lv, ((i as usize + 1) << lv) - 1);
-        *pieces += 1;
-        *patch_pieces += (last.min(j1) + 1).saturating_sub(first.max(j0)) as u64;
-        nodes[m] = nd;
-        t[m + 1] = if last >= j1 { span.s1 } else { b } - foot;
-        m += 1;
-        if m == BATCH {
-            flush(t, &nodes[..m], fresh, f, l);
-            t[0] = t[m];
-            f[0] = f[m];
-            l[0] = l[m];
-            m = 0;
-            fresh = 1;
-        }
-    }
-    if m > 0 {
-        flush(t, &nodes[..m], fresh, f, l);
+        counts.pieces += 1;
+        counts.patch_pieces += (last.min(j1) + 1).saturating_sub(first.max(j0)) as u64;
+        piece(sc, nd, if last >= j1 { span.s1 } else { b });
     }
 }
 
@@ -536,6 +516,10 @@ fn paper_span(
             acc[c] += rad.patch(patches, pt, c) * (d / r) * w * vis;
         }
     });
+}
+
+thread_local! {
+    static SCRATCH: std::cell::RefCell<PixelScratch> = std::cell::RefCell::new(PixelScratch::new());
 }
 
 /// The floor pixels of a level, as query points.
@@ -577,17 +561,15 @@ pub fn gather(
         .collect();
     let shared = Disjoint::new(&mut out);
     let counts = std::sync::Mutex::new(GatherCounts::default());
-    let lit = |e: u32, dist: f64| {
-        let e = e as usize;
-        (rad.edge_emits[e] || rad.edge_reflects[e]) && dist <= reach.radius[e]
-    };
-    let mut stats = for_each_visibility(
+    // Edges with light, each within its reach.
+    let reach2 = wanted_reach(reach, |e| rad.edge_emits[e] || rad.edge_reflects[e]);
+    let stats = for_each_visibility(
         geometry,
         &pos,
         pixels,
         &|_| View::Full,
         reach,
-        Some(&lit),
+        Some(&reach2),
         &|i, spans| {
             // Bakes have at most three channels: no allocation per pixel.
             let mut small = [0.0; 3];
@@ -598,18 +580,20 @@ pub fn gather(
                 big.resize(k, 0.0);
                 &mut big[..]
             };
-            let c = pixel_light(
-                &geometry.edges,
-                patches,
-                rad,
-                &tree,
-                falloff,
-                kernel,
-                reach,
-                pos[i],
-                spans,
-                acc,
-            );
+            let c = SCRATCH.with(|sc| {
+                pixel_light(
+                    &geometry.edges,
+                    patches,
+                    rad,
+                    &tree,
+                    falloff,
+                    kernel,
+                    pos[i],
+                    spans,
+                    acc,
+                    &mut sc.borrow_mut(),
+                )
+            });
             // Summed per pixel: a pixel's gather takes microseconds.
             *counts.lock().expect("no panics while holding the lock") += c;
             for (c, &v) in acc.iter().enumerate() {
@@ -621,7 +605,6 @@ pub fn gather(
     let counts = counts
         .into_inner()
         .expect("no panics while holding the lock");
-    stats.culled_pairs += counts.culled;
     (out, stats, counts)
 }
 

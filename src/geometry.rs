@@ -117,6 +117,20 @@ impl Edge {
         }
     }
 
+    /// Squared distance from point `p` to the closed segment.
+    #[inline]
+    pub fn distance_sq(&self, p: [f64; 2]) -> f64 {
+        let (lo, hi) = self.extent();
+        let s = if self.normal.is_vertical_edge() {
+            p[1]
+        } else {
+            p[0]
+        };
+        let along = (lo - s).max(s - hi).max(0.0);
+        let d = self.front_distance(p);
+        d * d + along * along
+    }
+
     /// The point of the edge at axis coordinate `s`.
     pub fn point_at(&self, s: f64) -> [f64; 2] {
         if self.normal.is_vertical_edge() {

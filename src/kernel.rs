@@ -284,52 +284,6 @@ impl GatherLine {
         }
     }
 
-    /// [`GatherLine::at`] and [`GatherLine::at_linear`] at every offset of
-    /// `t`, into `f` and `l` (same lengths). The same numbers as the scalar
-    /// calls, in loops without branches that the compiler can vectorise.
-    #[inline]
-    pub fn at_many(&self, t: &[f64], f: &mut [f64], l: &mut [f64]) {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2 (checked just above).
-            return unsafe { self.at_many_avx2(t, f, l) };
-        }
-        self.at_many_plain(t, f, l)
-    }
-
-    /// [`GatherLine::at_many`] compiled for AVX2: four lanes instead of two.
-    /// The same operations in the same order (no fused multiply-add), so the
-    /// same bits as the plain version.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn at_many_avx2(&self, t: &[f64], f: &mut [f64], l: &mut [f64]) {
-        self.at_many_plain(t, f, l)
-    }
-
-    #[inline(always)]
-    fn at_many_plain(&self, t: &[f64], f: &mut [f64], l: &mut [f64]) {
-        let (f, l) = (&mut f[..t.len()], &mut l[..t.len()]);
-        let d = self.d;
-        match self.fall {
-            None => {
-                for (f, &t) in f.iter_mut().zip(t) {
-                    *f = atan(t / d);
-                }
-                for (l, &t) in l.iter_mut().zip(t) {
-                    *l = 0.5 * d * ln_pos(d * d + t * t);
-                }
-            }
-            Some((k, c)) => {
-                for (f, &t) in f.iter_mut().zip(t) {
-                    *f = atan(t / d) - k * atan(t / c);
-                }
-                for (l, &t) in l.iter_mut().zip(t) {
-                    *l = 0.5 * d * ln_pos((d * d + t * t) / (c * c + t * t));
-                }
-            }
-        }
-    }
-
     /// Integral over `[t0, t1]`, computed without cancellation for short stretches.
     #[inline]
     pub fn between(&self, t0: f64, t1: f64) -> f64 {
@@ -339,6 +293,145 @@ impl GatherLine {
             None => dpsi,
             Some((k, c)) => dpsi - k * (c * (t1 - t0)).atan2(c * c + t0 * t1),
         }
+    }
+}
+
+/// Points at which a pixel needs the gather's closed forms, each on its own
+/// line (structure of arrays, so that the loops over them vectorise): point
+/// `i` is at offset `t[i]` from the foot of a line at distance `d[i]`, with
+/// the falloff constants `c = sqrt(A + d^2)` and `k = d / c` of that line
+/// (`1` and `0` without falloff, where they are not used).
+#[derive(Clone, Debug, Default)]
+pub struct GatherPoints {
+    pub t: Vec<f64>,
+    pub d: Vec<f64>,
+    pub c: Vec<f64>,
+    pub k: Vec<f64>,
+}
+
+impl GatherPoints {
+    pub fn clear(&mut self) {
+        self.t.clear();
+        self.d.clear();
+        self.c.clear();
+        self.k.clear();
+    }
+
+    pub fn len(&self) -> usize {
+        self.t.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.t.is_empty()
+    }
+
+    /// Adds offset `t` on `line`.
+    #[inline]
+    pub fn push(&mut self, t: f64, line: &GatherLine) {
+        let (k, c) = line.fall.unwrap_or((0.0, 1.0));
+        self.t.push(t);
+        self.d.push(line.d);
+        self.c.push(c);
+        self.k.push(k);
+    }
+
+    /// [`GatherLine::at`] and [`GatherLine::at_linear`] at every point, into
+    /// `f` and `l` (resized to fit). The same numbers as the scalar calls;
+    /// `falloff` says which forms the points' lines use.
+    pub fn antiderivatives(&self, falloff: bool, f: &mut Vec<f64>, l: &mut Vec<f64>) {
+        f.resize(self.len(), 0.0);
+        l.resize(self.len(), 0.0);
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2 (checked just above).
+            return unsafe { self.antiderivatives_avx2(falloff, f, l) };
+        }
+        self.antiderivatives_plain(falloff, f, l)
+    }
+
+    /// [`GatherPoints::antiderivatives`] compiled for AVX2: four lanes
+    /// instead of two. The same operations in the same order (no fused
+    /// multiply-add), so the same bits as the plain version.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn antiderivatives_avx2(&self, falloff: bool, f: &mut [f64], l: &mut [f64]) {
+        self.antiderivatives_plain(falloff, f, l)
+    }
+
+    #[inline(always)]
+    fn antiderivatives_plain(&self, falloff: bool, f: &mut [f64], l: &mut [f64]) {
+        let n = self.len();
+        let (t, d, c, k) = (&self.t[..n], &self.d[..n], &self.c[..n], &self.k[..n]);
+        let (f, l) = (&mut f[..n], &mut l[..n]);
+        if falloff {
+            for i in 0..n {
+                f[i] = atan(t[i] / d[i]) - k[i] * atan(t[i] / c[i]);
+            }
+            for i in 0..n {
+                let (t, d, c) = (t[i], d[i], c[i]);
+                l[i] = 0.5 * d * ln_pos((d * d + t * t) / (c * c + t * t));
+            }
+        } else {
+            for i in 0..n {
+                f[i] = atan(t[i] / d[i]);
+            }
+            for i in 0..n {
+                let (t, d) = (t[i], d[i]);
+                l[i] = 0.5 * d * ln_pos(d * d + t * t);
+            }
+        }
+    }
+
+    /// [`GatherLine::between`] from each point to the point after it in
+    /// `ends` (`ends.t[i] > t[i]`, same lines), into `out` (resized to fit):
+    /// the integral over each stretch without cancellation, with a
+    /// branch-free `atan2` ([`atan2_upper`]) instead of the library's.
+    pub fn between(&self, ends: &[f64], falloff: bool, out: &mut Vec<f64>) {
+        out.resize(self.len(), 0.0);
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2 (checked just above).
+            return unsafe { self.between_avx2(ends, falloff, out) };
+        }
+        self.between_plain(ends, falloff, out)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn between_avx2(&self, ends: &[f64], falloff: bool, out: &mut [f64]) {
+        self.between_plain(ends, falloff, out)
+    }
+
+    #[inline(always)]
+    fn between_plain(&self, ends: &[f64], falloff: bool, out: &mut [f64]) {
+        let n = self.len();
+        let (t0, t1, d) = (&self.t[..n], &ends[..n], &self.d[..n]);
+        let (c, k, out) = (&self.c[..n], &self.k[..n], &mut out[..n]);
+        for i in 0..n {
+            let (t0, t1, d) = (t0[i], t1[i], d[i]);
+            out[i] = atan2_upper(d * (t1 - t0), d * d + t0 * t1);
+        }
+        if falloff {
+            for i in 0..n {
+                let (t0, t1, c) = (t0[i], t1[i], c[i]);
+                out[i] -= k[i] * atan2_upper(c * (t1 - t0), c * c + t0 * t1);
+            }
+        }
+    }
+}
+
+/// `atan2(y, x)` for `y > 0` (or `y = 0 < x`), without branches: `atan(y /
+/// x)` for `x > 0`, else `pi/2 + atan(-x / y)`. Within a few ulps of the
+/// library's, as [`atan`] is.
+#[inline(always)]
+pub fn atan2_upper(y: f64, x: f64) -> f64 {
+    let right = x > 0.0;
+    let q = if right { y / x } else { -x / y };
+    let a = atan(q);
+    if right {
+        a
+    } else {
+        std::f64::consts::FRAC_PI_2 + a
     }
 }
 

@@ -27,7 +27,7 @@ use serde::{Deserialize, Serialize};
 use crate::geometry::{Edge, Geometry, Normal};
 use crate::kernel::Reach;
 use crate::kernel::{FactorLine, Falloff, gauss_legendre};
-use crate::visibility::{Blocks, Rect, Span, Sweeper, TileTree, View};
+use crate::visibility::{Blocks, Reachable, Rect, Span, Sweeper, TileTree, View, Wanted};
 
 /// Patches: every edge cut into equal pieces.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -135,8 +135,8 @@ pub fn normal_vec(n: Normal) -> [f64; 2] {
 }
 
 /// The factors from point `x` on an edge with normal `nx` to every patch it
-/// sees, appended to `out` as `(patch, K)`; `spans` is the point's visibility.
-#[allow(clippy::too_many_arguments)]
+/// sees, appended to `out` as `(patch, K)`; `spans` is the point's visibility
+/// (the falloff reach is applied there, see [`for_each_visibility`]).
 pub fn point_factors(
     edges: &[Edge],
     patches: &Patches,
@@ -144,18 +144,12 @@ pub fn point_factors(
     nx: Normal,
     spans: &[Span],
     falloff: Option<Falloff>,
-    reach: &Reach,
     out: &mut Vec<(u32, f64)>,
-) -> u64 {
+) {
     let nxv = normal_vec(nx);
-    let mut culled = 0;
     for span in spans {
         let e = &edges[span.edge as usize];
         let d = e.front_distance(x);
-        if beyond(e, x, reach.radius[span.edge as usize]) {
-            culled += 1;
-            continue;
-        }
         let nj = normal_vec(e.normal);
         let tj = axis_vec(e.normal);
         let alpha = -(nxv[0] * nj[0] + nxv[1] * nj[1]);
@@ -180,28 +174,6 @@ pub fn point_factors(
             }
         });
     }
-    culled
-}
-
-/// Is edge `e` farther than `radius` from point `p`? Compared squared, so
-/// the many per-pixel tests need no square root.
-#[inline]
-pub fn beyond(e: &Edge, p: [f64; 2], radius: f64) -> bool {
-    radius.is_finite() && radius * radius < edge_distance_sq(e, p)
-}
-
-/// Squared distance from point `p` to edge `e`.
-#[inline]
-fn edge_distance_sq(e: &Edge, p: [f64; 2]) -> f64 {
-    let (lo, hi) = e.extent();
-    let s = if e.normal.is_vertical_edge() {
-        p[1]
-    } else {
-        p[0]
-    };
-    let along = (lo - s).max(s - hi).max(0.0);
-    let d = e.front_distance(p);
-    d * d + along * along
 }
 
 /// The form factors, stored as the symmetric matrix `S` (full storage, CSR)
@@ -453,16 +425,18 @@ pub struct VisitStats {
 /// Runs `f(point index, spans)` for every query point, with the exact
 /// visibility of that point, in parallel over leaf tiles. `pixel[i]` is the
 /// free pixel a point belongs to, `pos[i]` its position, `view[i]` its view.
-/// Edges beyond `reach.max` are left out. When `contributes(edge, distance)`
-/// is given and no candidate of a point's region contributes at its distance
-/// from the region, the point gets no spans without a visibility query.
+/// Edges beyond `reach.max` are left out. With `reach2` (see [`Wanted`]),
+/// only the spans of edges within their squared reach are passed on (the
+/// others still occlude; they count as culled pairs), and a point whose
+/// region has no candidate within reach gets no spans without a visibility
+/// query.
 pub fn for_each_visibility<F>(
     geometry: &Geometry,
     pos: &[[f64; 2]],
     pixel: &[[i32; 2]],
     view: &(dyn Fn(usize) -> View + Sync),
     reach: &Reach,
-    contributes: Option<&(dyn Fn(u32, f64) -> bool + Sync)>,
+    reach2: Option<&[f64]>,
     f: &F,
 ) -> VisitStats
 where
@@ -477,21 +451,33 @@ where
     let blocks = Blocks::new(geometry);
     let grid = PointGrid::new(geometry.width, geometry.height, tree.leaf as usize, pixel);
     let unreached = std::sync::atomic::AtomicU64::new(0);
+    let left_out = std::sync::atomic::AtomicU64::new(0);
     let culled_pairs = tree.for_each_leaf(&|r| grid.count_in(r), reach.max, &|leaf| {
-        // Regions with a known list and nothing in it that contributes.
-        let dark: Vec<bool> = leaf
+        // Per region with a known list: where each candidate's light reaches.
+        let class: Vec<Option<Vec<Reachable>>> = leaf
             .regions
             .iter()
-            .map(|r| match (contributes, &r.candidates) {
-                (Some(c), Some(list)) => !list
-                    .iter()
-                    .any(|&e| c(e, r.bbox.distance_to(&geometry.edges[e as usize]))),
-                _ => false,
+            .map(|r| {
+                let (reach2, list) = (reach2?, r.candidates.as_ref()?);
+                let mut c = Vec::new();
+                Wanted::classify(reach2, &geometry.edges, &r.bbox, list, &mut c);
+                Some(c)
+            })
+            .collect();
+        // Regions where no candidate is within reach of any point.
+        let dark: Vec<bool> = class
+            .iter()
+            .map(|c| {
+                c.as_ref().is_some_and(|c| {
+                    c.iter()
+                        .all(|&k| k == Reachable::Beyond || k == Reachable::Never)
+                })
             })
             .collect();
         SWEEPER.with(|cell| {
             let (sweeper, spans, seeds) = &mut *cell.borrow_mut();
             let mut skipped = 0;
+            let mut dropped = 0;
             // Walks are seeded with what the previous point of the region saw.
             let mut seed_region = usize::MAX;
             for &i in grid.in_leaf(leaf.rect) {
@@ -505,13 +491,22 @@ where
                 } else {
                     match leaf.candidates_at(px) {
                         Some(cands) => {
-                            sweeper.sweep(&geometry.edges, cands, pos[i], view(i), comp, spans)
+                            let class = region.and_then(|r| class[r].as_deref());
+                            dropped += sweeper.sweep_wanted(
+                                &geometry.edges,
+                                cands,
+                                pos[i],
+                                view(i),
+                                comp,
+                                reach2.map(|reach2| Wanted { reach2, class }),
+                                spans,
+                            )
                         }
                         None => {
                             if region != Some(seed_region) {
                                 seeds.clear();
                             }
-                            sweeper.walk(
+                            dropped += sweeper.walk_wanted(
                                 &geometry.edges,
                                 &blocks,
                                 pos[i],
@@ -519,6 +514,10 @@ where
                                 comp,
                                 reach.max,
                                 seeds,
+                                reach2.map(|reach2| Wanted {
+                                    reach2,
+                                    class: None,
+                                }),
                                 spans,
                             );
                             seeds.clear();
@@ -531,12 +530,24 @@ where
                 f(i, spans);
             }
             unreached.fetch_add(skipped, std::sync::atomic::Ordering::Relaxed);
+            left_out.fetch_add(dropped, std::sync::atomic::Ordering::Relaxed);
         })
     });
     VisitStats {
-        culled_pairs,
+        culled_pairs: culled_pairs + left_out.into_inner(),
         unreached: unreached.into_inner(),
     }
+}
+
+/// [`Wanted`] squared reaches for `reach`: edges that `lit` says have light
+/// reach out to their radius, the others nowhere.
+pub fn wanted_reach(reach: &Reach, lit: impl Fn(usize) -> bool) -> Vec<f64> {
+    reach
+        .radius
+        .iter()
+        .enumerate()
+        .map(|(e, &r)| if lit(e) { r * r } else { -1.0 })
+        .collect()
 }
 
 /// Computes the form factors with `quad` Gauss-Legendre points per patch,
@@ -567,23 +578,29 @@ pub fn form_factors(
     let results: Vec<std::sync::Mutex<Vec<(u32, f64)>>> =
         (0..n * q).map(|_| Default::default()).collect();
     let view = |i: usize| View::Half(edges[patches.edge[i / q] as usize].normal);
-    let culled = std::sync::atomic::AtomicU64::new(0);
-    let mut stats = for_each_visibility(geometry, &pos, &pixel, &view, reach, None, &|i, spans| {
-        let mut out = Vec::new();
-        let c = point_factors(
-            edges,
-            patches,
-            pos[i],
-            edges[patches.edge[i / q] as usize].normal,
-            spans,
-            falloff,
-            reach,
-            &mut out,
-        );
-        culled.fetch_add(c, std::sync::atomic::Ordering::Relaxed);
-        *results[i].lock().expect("no panics while holding the lock") = out;
-    });
-    stats.culled_pairs += culled.into_inner();
+    // Every edge receives light: each is wanted within its reach.
+    let reach2 = wanted_reach(reach, |_| true);
+    let stats = for_each_visibility(
+        geometry,
+        &pos,
+        &pixel,
+        &view,
+        reach,
+        Some(&reach2),
+        &|i, spans| {
+            let mut out = Vec::new();
+            point_factors(
+                edges,
+                patches,
+                pos[i],
+                edges[patches.edge[i / q] as usize].normal,
+                spans,
+                falloff,
+                &mut out,
+            );
+            *results[i].lock().expect("no panics while holding the lock") = out;
+        },
+    );
     let rows: Vec<Vec<(u32, f64)>> = (0..n)
         .into_par_iter()
         .map(|p| {

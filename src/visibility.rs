@@ -72,6 +72,10 @@ struct Piece {
     sb: f64,
     va: [f64; 2],
     vb: [f64; 2],
+    /// Its spans are wanted (see [`Wanted`]); when not, `dim` says that its
+    /// edge has light, only too far away to matter here.
+    lit: bool,
+    dim: bool,
 }
 
 impl Piece {
@@ -317,6 +321,8 @@ impl Query {
                     sb: qs,
                     va: v0,
                     vb: v1,
+                    lit: true,
+                    dim: false,
                 }
             } else {
                 Piece {
@@ -329,6 +335,8 @@ impl Query {
                     sb: ps,
                     va: v1,
                     vb: v0,
+                    lit: true,
+                    dim: false,
                 }
             });
         };
@@ -667,6 +675,84 @@ impl Blocks {
     }
 }
 
+/// Which edges' spans a query returns: edge `e` only from points within
+/// squared distance `reach2[e]` of it (negative: never, the edge has no
+/// light). The others still hide what is behind them, but their spans are
+/// left out (and counted, for edges with some light) instead of being found
+/// and then discarded: most of what a pixel sees under falloff is far
+/// walls that only hide other walls.
+#[derive(Clone, Copy, Debug)]
+pub struct Wanted<'a> {
+    pub reach2: &'a [f64],
+    /// For a sweep, optionally: per candidate, what holds for the query's
+    /// whole region ([`Wanted::classify`]), so that only the candidates
+    /// that are within reach of part of it are tested per point.
+    pub class: Option<&'a [Reachable]>,
+}
+
+/// Where a candidate's light reaches, over a whole region of query points.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Reachable {
+    /// Every point is within reach.
+    All,
+    /// No point is (the edge has light, but too far away).
+    Beyond,
+    /// The edge has no light at all.
+    Never,
+    /// Some points are: test each.
+    Some,
+}
+
+impl Wanted<'_> {
+    /// Classifies `candidates` for the points of the closed rectangle `r`
+    /// (distances to a segment are largest at a corner of the rectangle).
+    pub fn classify(
+        reach2: &[f64],
+        edges: &[Edge],
+        r: &Rect,
+        candidates: &[u32],
+        out: &mut Vec<Reachable>,
+    ) {
+        out.clear();
+        let corners = [
+            [r.x0 as f64, r.y0 as f64],
+            [r.x1 as f64, r.y0 as f64],
+            [r.x0 as f64, r.y1 as f64],
+            [r.x1 as f64, r.y1 as f64],
+        ];
+        out.extend(candidates.iter().map(|&ei| {
+            let (e, r2) = (&edges[ei as usize], reach2[ei as usize]);
+            if r2 < 0.0 {
+                return Reachable::Never;
+            }
+            let near = r.distance_to(e);
+            if near * near > r2 {
+                Reachable::Beyond
+            } else if corners.iter().all(|&c| e.distance_sq(c) <= r2) {
+                Reachable::All
+            } else {
+                Reachable::Some
+            }
+        }));
+    }
+
+    /// Is edge `ei` (candidate number `j`, if the query has a list) wanted
+    /// from `p`, and if not, does it have light?
+    #[inline]
+    fn at(&self, edges: &[Edge], ei: u32, j: Option<usize>, p: [f64; 2]) -> (bool, bool) {
+        let r2 = self.reach2[ei as usize];
+        match self.class.zip(j).map(|(c, j)| c[j]) {
+            Some(Reachable::All) => (true, false),
+            Some(Reachable::Beyond) => (false, true),
+            Some(Reachable::Never) => (false, false),
+            _ => {
+                let lit = r2 >= 0.0 && edges[ei as usize].distance_sq(p) <= r2;
+                (lit, !lit && r2 >= 0.0)
+            }
+        }
+    }
+}
+
 /// Reusable buffers for visibility queries (one per thread).
 #[derive(Default)]
 pub struct Sweeper {
@@ -713,15 +799,38 @@ impl Sweeper {
         comp: u32,
         out: &mut Vec<Span>,
     ) {
+        self.sweep_wanted(edges, candidates, p, view, comp, None, out);
+    }
+
+    /// [`Sweeper::sweep`], returning only the spans `wanted`; returns how
+    /// many spans of edges with light it left out.
+    #[allow(clippy::too_many_arguments)]
+    pub fn sweep_wanted(
+        &mut self,
+        edges: &[Edge],
+        candidates: &[u32],
+        p: [f64; 2],
+        view: View,
+        comp: u32,
+        wanted: Option<Wanted>,
+        out: &mut Vec<Span>,
+    ) -> u64 {
         let q = Query::new(p, view, comp);
         self.pieces.clear();
         self.events.clear();
-        for &ei in candidates {
+        for (j, &ei) in candidates.iter().enumerate() {
+            let from = self.pieces.len();
             q.pieces(edges, ei, &mut self.pieces);
+            if let Some(w) = wanted
+                && self.pieces.len() > from
+            {
+                Self::mark(&mut self.pieces[from..], w.at(edges, ei, Some(j), p));
+            }
         }
         if self.pieces.is_empty() {
-            return;
+            return 0;
         }
+        let mut left_out = 0;
         self.shape.clear();
         for (id, pc) in self.pieces.iter().enumerate() {
             let part = u32::from(id > 0 && self.pieces[id - 1].edge == pc.edge);
@@ -816,17 +925,39 @@ impl Sweeper {
                 }
                 Some(best)
             };
+            // The nearest piece's span, unless it is not wanted (then it
+            // only hides what is behind it).
+            let shown = match nearest {
+                Some(pc) if !self.pieces[pc as usize].lit => {
+                    if current != nearest && self.pieces[pc as usize].dim {
+                        left_out += 1;
+                    }
+                    None
+                }
+                _ => nearest,
+            };
             current = nearest;
-            if open.map(|o| o.0) != nearest {
+            if open.map(|o| o.0) != shown {
                 if let Some((pc, k0, v0)) = open.take() {
                     self.emit(edges, p, pc, k0, v0, key, vertex, out);
                 }
-                if let Some(pc) = nearest {
+                if let Some(pc) = shown {
                     open = Some((pc, key, vertex));
                 }
             }
         }
         debug_assert!(open.is_none(), "the last event closes every span");
+        left_out
+    }
+
+    /// Marks the `pieces` of one edge as wanted or not (`(lit, dim)`, see
+    /// [`Piece`]).
+    #[inline]
+    fn mark(pieces: &mut [Piece], (lit, dim): (bool, bool)) {
+        for pc in pieces {
+            pc.lit = lit;
+            pc.dim = dim;
+        }
     }
 
     /// Sorts `events` by key, ties by id: a total order, so the result does
@@ -915,13 +1046,16 @@ impl Sweeper {
 
     /// Adds edge `ei`'s visible pieces to the coverage, once per walk.
     #[inline]
-    fn insert_edge(&mut self, q: &Query, edges: &[Edge], ei: u32) {
+    fn insert_edge(&mut self, q: &Query, edges: &[Edge], ei: u32, wanted: Option<Wanted>) {
         if self.stamp[ei as usize] == self.generation {
             return;
         }
         self.stamp[ei as usize] = self.generation;
         let from = self.pieces.len();
         q.pieces(edges, ei, &mut self.pieces);
+        if let Some(w) = wanted {
+            Self::mark(&mut self.pieces[from..], w.at(edges, ei, None, q.p));
+        }
         for pi in from..self.pieces.len() {
             self.cover.insert(&self.pieces, pi as u32);
         }
@@ -944,6 +1078,24 @@ impl Sweeper {
         seeds: &[u32],
         out: &mut Vec<Span>,
     ) {
+        self.walk_wanted(edges, blocks, p, view, comp, reach_max, seeds, None, out);
+    }
+
+    /// [`Sweeper::walk`], returning only the spans `wanted`; returns how
+    /// many spans of edges with light it left out.
+    #[allow(clippy::too_many_arguments)]
+    pub fn walk_wanted(
+        &mut self,
+        edges: &[Edge],
+        blocks: &Blocks,
+        p: [f64; 2],
+        view: View,
+        comp: u32,
+        reach_max: f64,
+        seeds: &[u32],
+        wanted: Option<Wanted>,
+        out: &mut Vec<Span>,
+    ) -> u64 {
         let q = Query::new(p, view, comp);
         self.pieces.clear();
         self.cover.reset(q.kmax());
@@ -957,7 +1109,7 @@ impl Sweeper {
             self.generation = 1;
         }
         for &ei in seeds {
-            self.insert_edge(&q, edges, ei);
+            self.insert_edge(&q, edges, ei, wanted);
         }
         let top = blocks.dims.len() - 1;
         self.stack.clear();
@@ -988,7 +1140,7 @@ impl Sweeper {
             if level == 0 {
                 let b = y as usize * nx + x as usize;
                 for &ei in &blocks.list[blocks.start[b]..blocks.start[b + 1]] {
-                    self.insert_edge(&q, edges, ei);
+                    self.insert_edge(&q, edges, ei, wanted);
                 }
                 continue;
             }
@@ -1014,11 +1166,17 @@ impl Sweeper {
                 self.stack.push((level - 1, cx, cy));
             }
         }
-        // Read the spans off the buffer.
+        // Read the spans off the buffer (intervals of one owner are merged).
         let cover = &self.cover;
+        let mut left_out = 0;
         for i in 0..cover.iv.len() {
             let o = cover.iv[i].owner;
             if o == NONE {
+                continue;
+            }
+            let pc = &self.pieces[o as usize];
+            if !pc.lit {
+                left_out += u64::from(pc.dim);
                 continue;
             }
             let (k0, k1) = (cover.start(i), cover.iv[i].end);
@@ -1029,6 +1187,7 @@ impl Sweeper {
             };
             self.emit(edges, p, o, k0, v0, k1, cover.iv[i].vend, out);
         }
+        left_out
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -1333,9 +1492,9 @@ impl SolidBoxes {
 }
 
 /// The arc of pseudo-angles that `points` span as seen from `q`, as
-/// `(start, extent)`, for points that lie within less than a half turn
-/// (pseudo-angle 2) of each other, as the corners of a box or the ends of
-/// an edge that do not hold `q` do.
+/// `(start, end)` with `start` in `[0, 4)` and `end - start < 2`, for points
+/// that lie within less than a half turn (pseudo-angle 2) of each other, as
+/// the corners of a box or the ends of an edge that do not hold `q` do.
 fn arc(q: [f64; 2], points: &[[f64; 2]]) -> (f64, f64) {
     let a0 = diamond(points[0][0] - q[0], points[0][1] - q[1]);
     let (mut lo, mut hi) = (0.0f64, 0.0f64);
@@ -1349,18 +1508,23 @@ fn arc(q: [f64; 2], points: &[[f64; 2]]) -> (f64, f64) {
         lo = lo.min(d);
         hi = hi.max(d);
     }
-    ((a0 + lo).rem_euclid(4.0), hi - lo)
+    let start = a0 + lo;
+    let start = if start < 0.0 { start + 4.0 } else { start };
+    (start, start + (hi - lo))
 }
 
 /// Does arc `outer` hold arc `inner` (with a margin for rounding: this only
 /// picks which boxes to test exactly)?
+#[inline]
 fn arc_holds(outer: (f64, f64), inner: (f64, f64)) -> bool {
     const SLACK: f64 = 1e-9;
-    let mut d = (inner.0 - outer.0).rem_euclid(4.0);
-    if d > 4.0 - SLACK {
-        d -= 4.0;
-    }
-    d >= -SLACK && d + inner.1 <= outer.1 + SLACK
+    // Both start in [0, 4); the inner one may sit a turn later.
+    let (a, b) = if inner.0 < outer.0 - SLACK {
+        (inner.0 + 4.0, inner.1 + 4.0)
+    } else {
+        inner
+    };
+    a >= outer.0 - SLACK && b <= outer.1 + SLACK
 }
 
 /// Query points per rectangle, to weigh culled pairs (0: nothing to do there).
@@ -1650,7 +1814,6 @@ impl<'g> TileTree<'g> {
     /// hides it from that point too).
     fn cull_hidden(&self, r: Rect, cands: Vec<u32>) -> Vec<u32> {
         let g = self.geometry;
-        let zone = Zone::of(r, self.centres);
         // Free pixel nearest the centre, per component present in the tile.
         let (cx2, cy2) = (r.x0 + r.x1, r.y0 + r.y1);
         let mut reps: Vec<(u32, i64, [i32; 2])> = Vec::new();
@@ -1671,15 +1834,45 @@ impl<'g> TileTree<'g> {
         if reps.is_empty() {
             return Vec::new();
         }
-        let mut sweeper = Sweeper::new();
-        let mut spans = Vec::new();
         let mut keep = vec![true; cands.len()];
-        let mut pool: Vec<u32> = Vec::new();
-        let mut arcs: Vec<(u32, (f64, f64))> = Vec::new();
-        for &(comp, _, px) in &reps {
+        CULL.with(|cell| {
+            let scratch = &mut *cell.borrow_mut();
+            self.cull_with(r, &cands, &reps, &mut keep, scratch);
+        });
+        cands
+            .into_iter()
+            .zip(keep)
+            .filter_map(|(c, k)| k.then_some(c))
+            .collect()
+    }
+
+    /// [`TileTree::cull_hidden`] for the representative points `reps`.
+    fn cull_with(
+        &self,
+        r: Rect,
+        cands: &[u32],
+        reps: &[(u32, i64, [i32; 2])],
+        keep: &mut [bool],
+        scratch: &mut CullScratch,
+    ) {
+        let g = self.geometry;
+        let zone = Zone::of(r, self.centres);
+        let CullScratch {
+            sweeper,
+            spans,
+            pooled,
+            stamp,
+            arcs,
+            bins,
+        } = scratch;
+        if pooled.len() != self.boxes.rects.len() {
+            *pooled = vec![0; self.boxes.rects.len()];
+            *stamp = 0;
+        }
+        for &(comp, _, px) in reps {
             let q = [px[0] as f64 + 0.5, px[1] as f64 + 0.5];
             spans.clear();
-            sweeper.sweep(&g.edges, &cands, q, View::Full, comp, &mut spans);
+            sweeper.sweep(&g.edges, cands, q, View::Full, comp, spans);
             if spans.is_empty() {
                 continue;
             }
@@ -1720,23 +1913,31 @@ impl<'g> TileTree<'g> {
             }
             // Boxes behind this component's candidates that touch neither
             // the zone nor (checked in box_hides) the edge, with their arcs.
-            pool.clear();
-            for &ei in &cands {
-                if g.edges[ei as usize].component == comp {
-                    pool.extend_from_slice(self.boxes.behind(ei));
-                }
-            }
-            pool.sort_unstable();
-            pool.dedup();
             arcs.clear();
-            for &b in &pool {
-                let s = &self.boxes.rects[b as usize];
-                if zone.meets(&Zone::solid(s)) {
+            *stamp = stamp.wrapping_add(1);
+            if *stamp == 0 {
+                pooled.fill(0);
+                *stamp = 1;
+            }
+            for &ei in cands {
+                if g.edges[ei as usize].component != comp {
                     continue;
                 }
-                let (x0, y0, x1, y1) = (s.x0 as f64, s.y0 as f64, s.x1 as f64, s.y1 as f64);
-                arcs.push((b, arc(q, &[[x0, y0], [x1, y0], [x0, y1], [x1, y1]])));
+                for &b in self.boxes.behind(ei) {
+                    // Each box once.
+                    if pooled[b as usize] == *stamp {
+                        continue;
+                    }
+                    pooled[b as usize] = *stamp;
+                    let s = &self.boxes.rects[b as usize];
+                    if zone.meets(&Zone::solid(s)) {
+                        continue;
+                    }
+                    let (x0, y0, x1, y1) = (s.x0 as f64, s.y0 as f64, s.x1 as f64, s.y1 as f64);
+                    arcs.push((b, arc(q, &[[x0, y0], [x1, y0], [x0, y1], [x1, y1]])));
+                }
             }
+            bins.fill(arcs);
             for (i, &ei) in cands.iter().enumerate() {
                 let e = &g.edges[ei as usize];
                 if e.component != comp || !keep[i] {
@@ -1745,17 +1946,89 @@ impl<'g> TileTree<'g> {
                 let a = [e.a[0] as f64, e.a[1] as f64];
                 let b = [e.b[0] as f64, e.b[1] as f64];
                 let ea = arc(q, &[a, b]);
-                if arcs.iter().any(|&(bx, ba)| {
-                    arc_holds(ba, ea) && box_hides(&zone, e, &self.boxes.rects[bx as usize])
-                }) {
+                // A box that holds the edge's arc holds its start: only the
+                // boxes filed under that direction need looking at.
+                let bin = ArcBins::bin(ea.0);
+                if bins.list[bins.start[bin] as usize..bins.start[bin + 1] as usize]
+                    .iter()
+                    .any(|&j| {
+                        let (bx, ba) = arcs[j as usize];
+                        arc_holds(ba, ea) && box_hides(&zone, e, &self.boxes.rects[bx as usize])
+                    })
+                {
                     keep[i] = false;
                 }
             }
         }
-        cands
-            .into_iter()
-            .zip(keep)
-            .filter_map(|(c, k)| k.then_some(c))
-            .collect()
     }
+}
+
+/// Arcs filed by the directions they cover, in [`ArcBins::N`] equal bins
+/// of pseudo-angle, so that the arcs that may hold a given direction are
+/// found without scanning them all: arc `j` is listed in every bin it
+/// touches (with the margin of [`arc_holds`]).
+#[derive(Default)]
+struct ArcBins {
+    start: Vec<u32>,
+    list: Vec<u32>,
+}
+
+impl ArcBins {
+    const N: usize = 32;
+
+    /// The bin of direction `k` (in `[0, 4)`).
+    #[inline]
+    fn bin(k: f64) -> usize {
+        ((k * (Self::N as f64 / 4.0)) as usize).min(Self::N - 1)
+    }
+
+    fn fill(&mut self, arcs: &[(u32, (f64, f64))]) {
+        const SLACK: f64 = 1e-9;
+        let per = Self::N as f64 / 4.0;
+        // Bins `first..=last` of an arc, counted past N where it wraps.
+        let span = |(a, b): (f64, f64)| {
+            let first = ((a - SLACK).max(0.0) * per) as usize;
+            let last = (((b + SLACK) * per) as usize).min(first + Self::N - 1);
+            (first, last)
+        };
+        self.start.clear();
+        self.start.resize(Self::N + 1, 0);
+        for &(_, a) in arcs {
+            let (first, last) = span(a);
+            for b in first..=last {
+                self.start[b % Self::N + 1] += 1;
+            }
+        }
+        for b in 0..Self::N {
+            self.start[b + 1] += self.start[b];
+        }
+        self.list.clear();
+        self.list.resize(self.start[Self::N] as usize, 0);
+        let mut fill: [u32; Self::N] = std::array::from_fn(|b| self.start[b]);
+        for (j, &(_, a)) in arcs.iter().enumerate() {
+            let (first, last) = span(a);
+            for b in first..=last {
+                let b = b % Self::N;
+                self.list[fill[b] as usize] = j as u32;
+                fill[b] += 1;
+            }
+        }
+    }
+}
+
+/// Buffers of [`TileTree::cull_hidden`], one per thread.
+#[derive(Default)]
+struct CullScratch {
+    sweeper: Sweeper,
+    spans: Vec<Span>,
+    /// Per box: the stamp of the last pool it joined.
+    pooled: Vec<u32>,
+    stamp: u32,
+    /// Pooled boxes and their arcs seen from the representative point.
+    arcs: Vec<(u32, (f64, f64))>,
+    bins: ArcBins,
+}
+
+thread_local! {
+    static CULL: std::cell::RefCell<CullScratch> = std::cell::RefCell::new(CullScratch::default());
 }

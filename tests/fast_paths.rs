@@ -11,9 +11,9 @@ use common::*;
 
 use std::f64::consts::TAU;
 
-use flatbake::gather::{Kernel, PatchTree, Radiosity, pixel_light};
+use flatbake::gather::{Kernel, PatchTree, PixelScratch, Radiosity, pixel_light};
 use flatbake::geometry::trace;
-use flatbake::kernel::{Falloff, Reach};
+use flatbake::kernel::Falloff;
 use flatbake::level::Level;
 use flatbake::transport::Patches;
 use flatbake::visibility::{Span, Sweeper, View};
@@ -146,10 +146,11 @@ fn check_gather(
     let rad = Radiosity::new(&patches, &b, &sl, &e);
     let falloff = fall.map(Falloff::new);
     let tree = PatchTree::new(&g.edges, &patches, &rad, 0..2, falloff, tolerance);
-    let reach = Reach::unlimited(g.edges.len());
     let all: Vec<u32> = (0..g.edges.len() as u32).collect();
     let mut sw = Sweeper::new();
     let mut spans = Vec::new();
+    // One scratch for every pixel, as a gather thread uses it.
+    let mut scratch = PixelScratch::new();
     for y in 0..l.height {
         for x in 0..l.width {
             let Some(comp) = g.component_at(x as i64, y as i64) else {
@@ -166,10 +167,10 @@ fn check_gather(
                 &tree,
                 falloff,
                 Kernel::Flatland,
-                &reach,
                 p,
                 &spans,
                 &mut acc,
+                &mut scratch,
             );
             let want = reference_light(&g.edges, &patches, &rad, falloff, p, &spans);
             for ch in 0..2 {
