@@ -312,11 +312,8 @@ pub struct PixelScratch {
     pts: GatherPoints,
     f: Vec<f64>,
     l: Vec<f64>,
-    /// Per piece: its tree node, the index of its end point (it starts at
-    /// the point before), and the foot of its span.
-    node: Vec<u32>,
-    end: Vec<u32>,
-    foot: Vec<f64>,
+    /// The pieces, in the order of their end points.
+    pieces: Vec<PieceAt>,
     /// Tree nodes still to visit: (level, index in the level).
     stack: Vec<(u32, u32)>,
 }
@@ -325,6 +322,16 @@ impl PixelScratch {
     pub fn new() -> Self {
         Self::default()
     }
+}
+
+/// A piece of reflected light queued for a pixel: its tree node, the index
+/// of its end point (it starts at the point before), and the node's centre
+/// relative to the foot of the pixel on the edge (`foot - mid`).
+#[derive(Clone, Copy, Debug)]
+struct PieceAt {
+    node: u32,
+    end: u32,
+    off: f64,
 }
 
 /// Adds to `acc` the light that pixel centre `p` receives from its visible
@@ -351,9 +358,7 @@ pub fn pixel_light(
     sc.em_end.clear();
     sc.em_edge.clear();
     sc.pts.clear();
-    sc.node.clear();
-    sc.end.clear();
-    sc.foot.clear();
+    sc.pieces.clear();
     for span in spans {
         let ei = span.edge as usize;
         let e = &edges[ei];
@@ -372,7 +377,8 @@ pub fn pixel_light(
         };
         let line = GatherLine::new(d, falloff);
         if rad.edge_emits[ei] {
-            sc.em.push(span.s0 - foot, &line);
+            sc.em.line(&line);
+            sc.em.push(span.s0 - foot);
             sc.em_end.push(span.s1 - foot);
             sc.em_edge.push(span.edge);
         }
@@ -394,14 +400,13 @@ pub fn pixel_light(
     sc.pts.antiderivatives(fall, &mut sc.f, &mut sc.l);
     let (f, l) = (&sc.f, &sc.l);
     let k = tree.k;
-    for ((&nd, &i), &foot) in sc.node.iter().zip(&sc.end).zip(&sc.foot) {
-        let (nd, i) = (nd as usize, i as usize);
+    for pc in &sc.pieces {
+        let (nd, i) = (pc.node as usize, pc.end as usize);
         let (g0, g1) = ((f[i] - f[i - 1]) / TAU, (l[i] - l[i - 1]) / TAU);
         // Express B(s) = mean + slope (s - mid) in t = s - foot.
-        let mid = tree.mid[nd];
         for c in 0..k {
             let g = tree.slope[nd * k + c];
-            acc[c] += (tree.mean[nd * k + c] + g * (foot - mid)) * g0 + g * g1;
+            acc[c] += (tree.mean[nd * k + c] + g * pc.off) * g0 + g * g1;
         }
     }
     counts
@@ -446,16 +451,20 @@ fn reflected_pieces(
     let n = patches.of_edge(ei).len();
     let levels = &tree.levels[tree.edge_levels[ei] as usize..tree.edge_levels[ei + 1] as usize];
     let foot = near.foot;
-    sc.pts.push(span.s0 - foot, line);
+    sc.pts.line(line);
+    sc.pts.push(span.s0 - foot);
     let piece = |sc: &mut PixelScratch, node: usize, end: f64| {
-        sc.pts.push(end - foot, line);
-        sc.node.push(node as u32);
-        sc.end.push(sc.pts.len() as u32 - 1);
-        sc.foot.push(foot);
+        sc.pts.push(end - foot);
+        sc.pieces.push(PieceAt {
+            node: node as u32,
+            end: sc.pts.len() as u32 - 1,
+            off: foot - tree.mid[node],
+        });
     };
     // Start at the smallest node holding the whole span: the patches of its
     // two ends first differ in bit `top - 1` of their index.
-    let patch_of = |s: f64| (((s - lo) / h).floor().max(0.0) as usize).min(n - 1);
+    // (`as` truncates towards 0 and saturates: the floor, clamped at 0.)
+    let patch_of = |s: f64| (((s - lo) / h) as usize).min(n - 1);
     let (j0, j1) = (patch_of(span.s0), patch_of(span.s1));
     if j0 == j1 {
         // Within one patch (most spans, on short edges): no walk.

@@ -300,21 +300,23 @@ impl GatherLine {
 /// line (structure of arrays, so that the loops over them vectorise): point
 /// `i` is at offset `t[i]` from the foot of a line at distance `d[i]`, with
 /// the falloff constants `c = sqrt(A + d^2)` and `k = d / c` of that line
-/// (`1` and `0` without falloff, where they are not used).
+/// (`1` and `0` without falloff, where they are not used). Points are
+/// pushed line by line ([`GatherPoints::line`], then [`GatherPoints::push`]);
+/// the per-point line constants are spread out once, before evaluating.
 #[derive(Clone, Debug, Default)]
 pub struct GatherPoints {
     pub t: Vec<f64>,
-    pub d: Vec<f64>,
-    pub c: Vec<f64>,
-    pub k: Vec<f64>,
+    d: Vec<f64>,
+    c: Vec<f64>,
+    k: Vec<f64>,
+    /// Each line and the number of points pushed before it.
+    lines: Vec<(usize, GatherLine)>,
 }
 
 impl GatherPoints {
     pub fn clear(&mut self) {
         self.t.clear();
-        self.d.clear();
-        self.c.clear();
-        self.k.clear();
+        self.lines.clear();
     }
 
     pub fn len(&self) -> usize {
@@ -325,20 +327,38 @@ impl GatherPoints {
         self.t.is_empty()
     }
 
-    /// Adds offset `t` on `line`.
+    /// The points pushed from now on lie on `line`.
     #[inline]
-    pub fn push(&mut self, t: f64, line: &GatherLine) {
-        let (k, c) = line.fall.unwrap_or((0.0, 1.0));
+    pub fn line(&mut self, line: &GatherLine) {
+        self.lines.push((self.t.len(), *line));
+    }
+
+    /// Adds offset `t` on the current line.
+    #[inline]
+    pub fn push(&mut self, t: f64) {
         self.t.push(t);
-        self.d.push(line.d);
-        self.c.push(c);
-        self.k.push(k);
+    }
+
+    /// Fills the per-point line constants from the lines.
+    fn spread(&mut self) {
+        let n = self.t.len();
+        for v in [&mut self.d, &mut self.c, &mut self.k] {
+            v.resize(n, 0.0);
+        }
+        for (j, (from, line)) in self.lines.iter().enumerate() {
+            let to = self.lines.get(j + 1).map_or(n, |l| l.0);
+            let (k, c) = line.fall.unwrap_or((0.0, 1.0));
+            self.d[*from..to].fill(line.d);
+            self.c[*from..to].fill(c);
+            self.k[*from..to].fill(k);
+        }
     }
 
     /// [`GatherLine::at`] and [`GatherLine::at_linear`] at every point, into
     /// `f` and `l` (resized to fit). The same numbers as the scalar calls;
     /// `falloff` says which forms the points' lines use.
-    pub fn antiderivatives(&self, falloff: bool, f: &mut Vec<f64>, l: &mut Vec<f64>) {
+    pub fn antiderivatives(&mut self, falloff: bool, f: &mut Vec<f64>, l: &mut Vec<f64>) {
+        self.spread();
         f.resize(self.len(), 0.0);
         l.resize(self.len(), 0.0);
         #[cfg(target_arch = "x86_64")]
@@ -386,7 +406,8 @@ impl GatherPoints {
     /// `ends` (`ends.t[i] > t[i]`, same lines), into `out` (resized to fit):
     /// the integral over each stretch without cancellation, with a
     /// branch-free `atan2` ([`atan2_upper`]) instead of the library's.
-    pub fn between(&self, ends: &[f64], falloff: bool, out: &mut Vec<f64>) {
+    pub fn between(&mut self, ends: &[f64], falloff: bool, out: &mut Vec<f64>) {
+        self.spread();
         out.resize(self.len(), 0.0);
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {

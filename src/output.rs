@@ -618,16 +618,13 @@ fn encode_images(
             message: e.to_string(),
         })
     };
-    let mut files = vec![
-        (
-            OutputKind::Lightmap,
-            png(OutputKind::Lightmap, &sdr_image(level, map, opts, false))?,
-        ),
-        (
-            OutputKind::Lit,
-            png(OutputKind::Lit, &sdr_image(level, map, opts, true))?,
-        ),
-    ];
+    // The two images are independent: encoded side by side (the end of a
+    // bake leaves the other cores idle, and deflate is most of the time).
+    let (lightmap, lit) = rayon::join(
+        || png(OutputKind::Lightmap, &sdr_image(level, map, opts, false)),
+        || png(OutputKind::Lit, &sdr_image(level, map, opts, true)),
+    );
+    let mut files = vec![(OutputKind::Lightmap, lightmap?), (OutputKind::Lit, lit?)];
     if opts.hdr {
         let bytes = encode_exr_rgb32f(level.width, level.height, &hdr_pixels(level, map)?)
             .map_err(|message| OutputError::Encode {

@@ -385,6 +385,14 @@ impl PointGrid {
             order[fill[l]] = i as u32;
             fill[l] += 1;
         }
+        // Within a leaf, rows alternate direction, so that each point is a
+        // neighbour of the one before (the sweep reuses its event order).
+        for l in 0..leaves {
+            order[start[l]..start[l + 1]].sort_by_key(|&i| {
+                let p = pixels[i as usize];
+                (p[1], if p[1] % 2 == 0 { p[0] } else { -p[0] })
+            });
+        }
         PointGrid {
             width,
             leaves_x,
