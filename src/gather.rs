@@ -569,7 +569,10 @@ pub fn gather(
         .map(|p| [p[0] as f64 + 0.5, p[1] as f64 + 0.5])
         .collect();
     let shared = Disjoint::new(&mut out);
-    let counts = std::sync::Mutex::new(GatherCounts::default());
+    // What each pixel merged, summed afterwards (a lock or an atomic shared
+    // by every pixel costs more than the pixel's own bookkeeping).
+    let mut merged = vec![[0u32; 2]; pixels.len()];
+    let shared_merged = Disjoint::new(&mut merged);
     // Edges with light, each within its reach.
     let reach2 = wanted_reach(reach, |e| rad.edge_emits[e] || rad.edge_reflects[e]);
     let stats = for_each_visibility(
@@ -603,17 +606,20 @@ pub fn gather(
                     &mut sc.borrow_mut(),
                 )
             });
-            // Summed per pixel: a pixel's gather takes microseconds.
-            *counts.lock().expect("no panics while holding the lock") += c;
+            let c = [c.pieces, c.patch_pieces].map(|v| v.min(u32::MAX as u64) as u32);
+            // SAFETY: each pixel index is visited exactly once.
+            unsafe { shared_merged.write(i, c) };
             for (c, &v) in acc.iter().enumerate() {
-                // SAFETY: each pixel index is visited exactly once.
+                // SAFETY: as above.
                 unsafe { shared.write(i * k + c, v) };
             }
         },
     );
-    let counts = counts
-        .into_inner()
-        .expect("no panics while holding the lock");
+    let counts = merged.iter().fold(GatherCounts::default(), |mut t, c| {
+        t.pieces += c[0] as u64;
+        t.patch_pieces += c[1] as u64;
+        t
+    });
     (out, stats, counts)
 }
 
