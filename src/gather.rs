@@ -122,10 +122,12 @@ impl<'a, T> Disjoint<'a, T> {
 ///
 /// Level 0 is the patches themselves (`B - E`, linear along each patch).
 /// A node above covers up to `2^level` consecutive patches and holds the
-/// least-squares straight line through their piecewise-linear light, and
-/// `dev`, the largest distance between that line and the light it stands
-/// for (over the components that decide, at every patch end: the difference
-/// is linear along each patch).
+/// least-squares parabola through their piecewise-linear light (a parabola
+/// costs the gather nothing more than a line: its closed form reuses the
+/// same `atan`s, [`GatherPoints::antiderivatives`]), and `dev`, the largest
+/// distance between that parabola and the light it stands for (over the
+/// components that decide, exactly: on each patch the difference is a
+/// quadratic, largest at an end of the patch or at its vertex).
 ///
 /// Seen from a pixel, a node whose nearest visible point is at distance `r`
 /// may stand in for its patches when `dev * w(r) <= tolerance`: its error
@@ -133,13 +135,15 @@ impl<'a, T> Disjoint<'a, T> {
 /// the nodes a pixel gathers together err by at most `tolerance`, however
 /// many there are. Nodes far away (small `w`) and over smooth light (small
 /// `dev`) are taken whole; near ones are split down to the patches. With a
-/// tolerance of 0 only exactly linear runs merge.
+/// tolerance of 0 only exactly quadratic runs merge.
 #[derive(Clone, Debug)]
 pub struct PatchTree {
     k: usize,
-    /// Per node and component: the line's value at `mid`, and its slope.
-    mean: Vec<f64>,
-    slope: Vec<f64>,
+    /// Per node and component: `B(s) = c0 + c1 u + c2 u^2` with `u = s -
+    /// mid` (`c2 = 0` on the patches).
+    c0: Vec<f64>,
+    c1: Vec<f64>,
+    c2: Vec<f64>,
     /// Per node: centre on the edge's axis, and the squared distance from
     /// which on it may stand in for its patches (`dev * w(r) <= tolerance`).
     mid: Vec<f64>,
@@ -150,6 +154,30 @@ pub struct PatchTree {
     /// Per edge: where its entries of `levels` start (edge `e`'s are
     /// `levels[edge_levels[e]..edge_levels[e + 1]]`).
     edge_levels: Vec<u32>,
+}
+
+/// The moments `integral of B(s) (s - m)^j ds`, `j = 0, 1, 2`, over `[m - l/2,
+/// m + l/2]` of `B(s) = c0 + c1 u + c2 u^2` (`u = s - m`), moved to centre
+/// `mid`: summed over a node's children they are the node's moments, since a
+/// least-squares parabola keeps the moments up to 2 of what it fits.
+fn moments(c: [f64; 3], m: f64, l: f64, mid: f64) -> [f64; 3] {
+    let (l3, e) = (l * l * l, m - mid);
+    let m0 = c[0] * l + c[2] * l3 / 12.0;
+    let m1 = c[1] * l3 / 12.0;
+    let m2 = c[0] * l3 / 12.0 + c[2] * l3 * l * l / 80.0;
+    [m0, m1 + e * m0, m2 + 2.0 * e * m1 + e * e * m0]
+}
+
+/// The least-squares parabola on `[mid - l/2, mid + l/2]` with moments
+/// `mo` (about `mid`), as `[c0, c1, c2]`: in the orthogonal basis `1, u,
+/// u^2 - l^2/12` its coefficients are `M0 / l`, `12 M1 / l^3` and
+/// `180 (M2 - l^2 M0 / 12) / l^5`.
+fn parabola(mo: [f64; 3], l: f64) -> [f64; 3] {
+    let l2 = l * l;
+    let a = mo[0] / l;
+    let b = 12.0 * mo[1] / (l2 * l);
+    let g = 180.0 * (mo[2] - l2 * mo[0] / 12.0) / (l2 * l2 * l);
+    [a - g * l2 / 12.0, b, g]
 }
 
 impl PatchTree {
@@ -178,8 +206,9 @@ impl PatchTree {
         };
         let mut t = PatchTree {
             k,
-            mean: Vec::new(),
-            slope: Vec::new(),
+            c0: Vec::new(),
+            c1: Vec::new(),
+            c2: Vec::new(),
             mid: Vec::new(),
             need: Vec::new(),
             levels: Vec::with_capacity(2 * edges.len()),
@@ -202,8 +231,9 @@ impl PatchTree {
             // Level 0: the patches.
             for j in 0..n {
                 let p = first + j;
-                t.mean.extend_from_slice(&rad.reflected[p * k..(p + 1) * k]);
-                t.slope.extend_from_slice(&rad.slope[p * k..(p + 1) * k]);
+                t.c0.extend_from_slice(&rad.reflected[p * k..(p + 1) * k]);
+                t.c1.extend_from_slice(&rad.slope[p * k..(p + 1) * k]);
+                t.c2.extend(std::iter::repeat_n(0.0, k));
                 t.mid.push(lo + (j as f64 + 0.5) * h);
                 t.need.push(0.0);
             }
@@ -219,36 +249,45 @@ impl PatchTree {
                     let (a, b) = (i << lv, ((i + 1) << lv).min(n));
                     let (s0, s1) = range(lv, i);
                     let (len, mid) = (s1 - s0, 0.5 * (s0 + s1));
-                    // Moments of the children's lines equal the patches'
-                    // (a least-squares line keeps both): sum them.
                     let kids = [2 * i, 2 * i + 1];
                     let kids = &kids[..if b - a > 1 << (lv - 1) { 2 } else { 1 }];
+                    let node = t.mid.len();
                     for c in 0..k {
-                        let (mut m0, mut m1) = (0.0, 0.0);
+                        let mut mo = [0.0; 3];
                         for &kid in kids {
                             let (k0, k1) = range(lv - 1, kid);
-                            let (ch, cl) = (below + kid, k1 - k0);
-                            m0 += t.mean[ch * k + c] * cl;
-                            m1 += t.slope[ch * k + c] * cl * cl * cl / 12.0
-                                + t.mean[ch * k + c] * cl * (t.mid[ch] - mid);
+                            let ch = (below + kid) * k + c;
+                            let cc = [t.c0[ch], t.c1[ch], t.c2[ch]];
+                            let m = moments(cc, t.mid[below + kid], k1 - k0, mid);
+                            for (x, y) in mo.iter_mut().zip(m) {
+                                *x += y;
+                            }
                         }
-                        t.mean.push(m0 / len);
-                        t.slope.push(m1 * 12.0 / (len * len * len));
+                        let [c0, c1, c2] = parabola(mo, len);
+                        t.c0.push(c0);
+                        t.c1.push(c1);
+                        t.c2.push(c2);
                     }
-                    let node = t.mid.len();
                     t.mid.push(mid);
-                    // Deviation at both ends of every patch under the node.
+                    // Deviation over every patch under the node: the
+                    // difference is quadratic along each patch.
                     let mut dev: f64 = 0.0;
                     for j in a..b {
                         let p = first + j;
-                        let pm = lo + (j as f64 + 0.5) * h;
+                        let e = lo + (j as f64 + 0.5) * h - mid;
                         for c in decide.clone() {
                             let (r, g) = (rad.reflected[p * k + c], rad.slope[p * k + c]);
-                            let (m, sl) = (t.mean[node * k + c], t.slope[node * k + c]);
-                            for s in [pm - 0.5 * h, pm + 0.5 * h] {
-                                let exact = r + g * (s - pm);
-                                let line = m + sl * (s - mid);
-                                dev = dev.max((exact - line).abs());
+                            let i = node * k + c;
+                            let (c0, c1, c2) = (t.c0[i], t.c1[i], t.c2[i]);
+                            // At offset w from the patch's centre.
+                            let diff =
+                                |w: f64| r + g * w - (c0 + c1 * (w + e) + c2 * (w + e) * (w + e));
+                            dev = dev.max(diff(-0.5 * h).abs()).max(diff(0.5 * h).abs());
+                            if c2 != 0.0 {
+                                let w = (g - c1) / (2.0 * c2) - e;
+                                if w.abs() < 0.5 * h {
+                                    dev = dev.max(diff(w).abs());
+                                }
                             }
                         }
                     }
@@ -308,10 +347,11 @@ pub struct PixelScratch {
     em_edge: Vec<u32>,
     em_g: Vec<f64>,
     /// Reflected light: for every reflecting span its start, then the end
-    /// of each of its pieces; the antiderivatives there.
+    /// of each of its pieces; the three antiderivatives there.
     pts: GatherPoints,
     f: Vec<f64>,
     l: Vec<f64>,
+    q: Vec<f64>,
     /// The pieces, in the order of their end points.
     pieces: Vec<PieceAt>,
     /// Tree nodes still to visit: (level, index in the level).
@@ -396,17 +436,24 @@ pub fn pixel_light(
             acc[c] += rad.edge_emission[ei as usize * k + c] * g;
         }
     }
-    // Reflected light, linear along each piece.
-    sc.pts.antiderivatives(fall, &mut sc.f, &mut sc.l);
-    let (f, l) = (&sc.f, &sc.l);
+    // Reflected light, quadratic along each piece.
+    sc.pts
+        .antiderivatives(fall, &mut sc.f, &mut sc.l, &mut sc.q);
+    let (f, l, q) = (&sc.f, &sc.l, &sc.q);
     let k = tree.k;
     for pc in &sc.pieces {
         let (nd, i) = (pc.node as usize, pc.end as usize);
-        let (g0, g1) = ((f[i] - f[i - 1]) / TAU, (l[i] - l[i - 1]) / TAU);
-        // Express B(s) = mean + slope (s - mid) in t = s - foot.
+        let g0 = (f[i] - f[i - 1]) / TAU;
+        let g1 = (l[i] - l[i - 1]) / TAU;
+        let g2 = (q[i] - q[i - 1]) / TAU;
+        // Express B = c0 + c1 u + c2 u^2, u = s - mid = t + off, in t = s - foot.
+        let off = pc.off;
         for c in 0..k {
-            let g = tree.slope[nd * k + c];
-            acc[c] += (tree.mean[nd * k + c] + g * pc.off) * g0 + g * g1;
+            let j = nd * k + c;
+            let (c0, c1, c2) = (tree.c0[j], tree.c1[j], tree.c2[j]);
+            let a1 = c1 + 2.0 * c2 * off;
+            let a0 = c0 + (c1 + c2 * off) * off;
+            acc[c] += a0 * g0 + a1 * g1 + c2 * g2;
         }
     }
     counts
