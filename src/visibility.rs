@@ -1588,9 +1588,13 @@ impl<'g> TileTree<'g> {
     pub const SWEEP_MAX: usize = 192;
     /// Longest list a quadtree node keeps refining; above it the subtree walks.
     pub const REFINE_MAX: usize = 3000;
+    /// Fewest query points in a leaf for its regions' lists to be culled
+    /// for hidden edges ([`TileTree::cull_hidden`]).
+    pub const CULL_MIN_POINTS: u64 = 8;
 
-    /// Splits leaf `r` into free regions and culls `cands` (if known) for each.
-    fn leaf_regions(&self, r: Rect, cands: Option<&[u32]>) -> LeafRegions {
+    /// Splits leaf `r` (holding `points` query points) into free regions and
+    /// culls `cands` (if known) for each.
+    fn leaf_regions(&self, r: Rect, cands: Option<&[u32]>, points: u64) -> LeafRegions {
         let g = self.geometry;
         let (w, h) = (r.width(), r.height());
         let mut label = vec![u8::MAX; (w * h) as usize];
@@ -1642,11 +1646,15 @@ impl<'g> TileTree<'g> {
                             e.component == component && bbox.sees_front_of(e)
                         })
                         .collect();
-                    let mine = if mine.len() <= 4 * Self::SWEEP_MAX {
-                        self.cull_hidden(bbox, mine)
-                    } else {
-                        mine
-                    };
+                    // Culling costs about two sweeps; a leaf with fewer
+                    // points than this (a wall's form-factor points) gains
+                    // less from shorter lists than it pays.
+                    let mine =
+                        if mine.len() <= 4 * Self::SWEEP_MAX && points >= Self::CULL_MIN_POINTS {
+                            self.cull_hidden(bbox, mine)
+                        } else {
+                            mine
+                        };
                     (mine.len() <= Self::SWEEP_MAX).then_some(mine)
                 });
                 regions.push(Region {
@@ -1766,7 +1774,7 @@ impl<'g> TileTree<'g> {
             culled.fetch_add(far * points, std::sync::atomic::Ordering::Relaxed);
         }
         if size <= self.leaf {
-            visit(&self.leaf_regions(r, cands.as_deref()));
+            visit(&self.leaf_regions(r, cands.as_deref(), points));
             return;
         }
         let cands = cands.filter(|c| c.len() <= Self::REFINE_MAX);
