@@ -282,6 +282,53 @@ impl Query {
         if self.full { 4.0 } else { 2.0 }
     }
 
+    /// Appends the piece of edge `ei` between local points `(u, v, s)`
+    /// (`s`: axis coordinate on the edge), ordered by pseudo-angle; none if
+    /// it is seen edge-on.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn push_piece(
+        &self,
+        out: &mut Vec<Piece>,
+        ei: u32,
+        u_const: bool,
+        c: f64,
+        (pu, pv, ps): (f64, f64, f64),
+        (qu, qv, qs): (f64, f64, f64),
+    ) {
+        let lower = pv < 0.0 || qv < 0.0;
+        let key = |u: f64, v: f64| {
+            if self.full && v == 0.0 && u > 0.0 && lower {
+                4.0
+            } else {
+                diamond(u, v)
+            }
+        };
+        let (k0, k1) = (key(pu, pv), key(qu, qv));
+        if k0 == k1 {
+            return;
+        }
+        let (v0, v1) = (self.global(pu, pv), self.global(qu, qv));
+        let (ka, kb, sa, sb, va, vb) = if k0 < k1 {
+            (k0, k1, ps, qs, v0, v1)
+        } else {
+            (k1, k0, qs, ps, v1, v0)
+        };
+        out.push(Piece {
+            edge: ei,
+            u_const,
+            c,
+            ka,
+            kb,
+            sa,
+            sb,
+            va,
+            vb,
+            lit: true,
+            dim: false,
+        });
+    }
+
     /// Appends the pieces of edge `ei` that the query can see at all: front
     /// facing, same component, inside the half-plane (clipped), split at the
     /// cut ray `+u` for full views.
@@ -296,50 +343,7 @@ impl Query {
         let (bu, bv) = self.local(b);
         let u_const = au == bu;
         let c = if u_const { au } else { av };
-        let mut push = |(pu, pv, ps): (f64, f64, f64), (qu, qv, qs): (f64, f64, f64)| {
-            let lower = pv < 0.0 || qv < 0.0;
-            let key = |u: f64, v: f64| {
-                if self.full && v == 0.0 && u > 0.0 && lower {
-                    4.0
-                } else {
-                    diamond(u, v)
-                }
-            };
-            let (k0, k1) = (key(pu, pv), key(qu, qv));
-            if k0 == k1 {
-                return;
-            }
-            let (v0, v1) = (self.global(pu, pv), self.global(qu, qv));
-            out.push(if k0 < k1 {
-                Piece {
-                    edge: ei,
-                    u_const,
-                    c,
-                    ka: k0,
-                    kb: k1,
-                    sa: ps,
-                    sb: qs,
-                    va: v0,
-                    vb: v1,
-                    lit: true,
-                    dim: false,
-                }
-            } else {
-                Piece {
-                    edge: ei,
-                    u_const,
-                    c,
-                    ka: k1,
-                    kb: k0,
-                    sa: qs,
-                    sb: ps,
-                    va: v1,
-                    vb: v0,
-                    lit: true,
-                    dim: false,
-                }
-            });
-        };
+        let push = |out: &mut Vec<Piece>, p, q| self.push_piece(out, ei, u_const, c, p, q);
         let (pa, pb) = ((au, av, lo), (bu, bv, hi));
         // Where a u-const piece meets v = 0: level with `p` along its axis.
         let m = (
@@ -354,18 +358,18 @@ impl Query {
         if self.full {
             if u_const && c > 0.0 && av.min(bv) < 0.0 && av.max(bv) > 0.0 {
                 // Split at the cut ray (+u); the halves meet at v = 0.
-                push(pa, m);
-                push(m, pb);
+                push(out, pa, m);
+                push(out, m, pb);
             } else {
-                push(pa, pb);
+                push(out, pa, pb);
             }
         } else if av <= 0.0 && bv <= 0.0 {
             // Entirely outside the open half-plane v > 0.
         } else if av >= 0.0 && bv >= 0.0 {
-            push(pa, pb);
+            push(out, pa, pb);
         } else {
             // Perpendicular to the half-plane's boundary: clip at v = 0.
-            push(m, if av > 0.0 { pa } else { pb });
+            push(out, m, if av > 0.0 { pa } else { pb });
         }
     }
 }
