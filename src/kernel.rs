@@ -517,7 +517,7 @@ impl FactorLine {
     /// Antiderivative of `1/2 cos(theta_x) w d psi` at offset `t`.
     #[inline]
     pub fn at(&self, t: f64) -> f64 {
-        let r = self.d.hypot(t);
+        let r = (self.d * self.d + t * t).sqrt();
         let (s, u) = (t / r, self.d / r);
         let (ps, qu) = match self.fall {
             None => (s, u),

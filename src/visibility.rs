@@ -1266,7 +1266,7 @@ impl Rect {
         };
         let da = (r_lo - hi).max(lo - r_hi).max(0.0);
         let dp = (p_lo - line).max(line - p_hi).max(0.0);
-        da.hypot(dp)
+        (da * da + dp * dp).sqrt()
     }
     /// True when some point of the closed rectangle is strictly in front of `e`.
     pub fn sees_front_of(&self, e: &Edge) -> bool {
