@@ -20,7 +20,7 @@ use crate::kernel::{Falloff, GatherLine, GatherPoints};
 use crate::level::{Cell, Level};
 use crate::transport::{Patches, for_each_visibility};
 use crate::transport::{VisitStats, wanted_reach};
-use crate::visibility::{Span, View};
+use crate::visibility::{Span, TileTree, View};
 
 /// Radiosity in a form the gather can use: `components` values per edge
 /// (uniform emission) and per patch (reflected light `B - E`).
@@ -138,6 +138,9 @@ impl<'a, T> Disjoint<'a, T> {
 /// tolerance of 0 only exactly quadratic runs merge.
 #[derive(Clone, Debug)]
 pub struct PatchTree {
+    /// Unique to this tree (and its clones): what cuts made from it are
+    /// cached under ([`TileCuts`]).
+    id: u64,
     k: usize,
     /// Per node and component: `B(s) = c0 + c1 u + c2 u^2` with `u = s -
     /// mid` (`c2 = 0` on the patches).
@@ -204,7 +207,9 @@ impl PatchTree {
                 })
             }
         };
+        static NEXT_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
         let mut t = PatchTree {
+            id: NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
             k,
             c0: Vec::new(),
             c1: Vec::new(),
@@ -354,8 +359,8 @@ pub struct PixelScratch {
     q: Vec<f64>,
     /// The pieces, in the order of their end points.
     pieces: Vec<PieceAt>,
-    /// Tree nodes still to visit: (level, index in the level).
-    stack: Vec<(u32, u32)>,
+    /// The patch trees as cut for the current tile.
+    cuts: TileCuts,
 }
 
 impl PixelScratch {
@@ -399,6 +404,7 @@ pub fn pixel_light(
     sc.em_edge.clear();
     sc.pts.clear();
     sc.pieces.clear();
+    sc.cuts.enter(tree, p, edges.len());
     for span in spans {
         let ei = span.edge as usize;
         let e = &edges[ei];
@@ -423,8 +429,7 @@ pub fn pixel_light(
             sc.em_edge.push(span.edge);
         }
         if rad.edge_reflects[ei] {
-            let near = Near { d2: d * d, foot };
-            reflected_pieces(patches, tree, edges, span, &line, &near, sc, &mut counts);
+            reflected_pieces(patches, tree, edges, span, &line, foot, sc, &mut counts);
         }
     }
     let fall = falloff.is_some();
@@ -459,28 +464,132 @@ pub fn pixel_light(
     counts
 }
 
-/// Where the pixel is relative to the edge: its squared distance to the
-/// edge's line and its foot on it.
-struct Near {
-    d2: f64,
-    foot: f64,
+/// Side of the square tiles of pixels that share their cuts of the patch
+/// trees ([`TileCuts`]): that of the visibility tiles, whose pixels a thread
+/// visits one after the other.
+const CUT_TILE: i32 = TileTree::LEAF;
+
+/// A node of a tile's cut of an edge's patch tree: the node, where its axis
+/// range ends, and the patches under it.
+#[derive(Clone, Copy, Debug)]
+struct CutPiece {
+    node: u32,
+    b: f64,
+    first: u32,
+    last: u32,
 }
 
-impl Near {
-    /// May a node that needs squared distance `need` stand in for its
-    /// patches over `[a, b]`?
-    #[inline]
-    fn whole(&self, need: f64, a: f64, b: f64) -> bool {
-        let off = self.foot.clamp(a, b) - self.foot;
-        self.d2 + off * off >= need
+/// The patch trees ([`PatchTree`]) cut into the nodes that may stand in for
+/// their patches as seen from every pixel centre of one tile: a node is
+/// taken whole when the tile's nearest pixel centre is far enough for it
+/// (then so is every pixel's nearest visible point of it, so each pixel's
+/// bound holds), else split. An edge is cut once per tile, when a pixel of
+/// the tile first sees its reflected light; the pixels then read the pieces
+/// under their spans off the cut instead of each walking the tree.
+#[derive(Default)]
+struct TileCuts {
+    /// The tree and the tile the cached cuts are for.
+    tree: Option<u64>,
+    tile: Option<[i32; 2]>,
+    generation: u32,
+    /// Per edge: the generation its cut was made in, and where it lies in `pieces`.
+    made: Vec<(u32, u32, u32)>,
+    pieces: Vec<CutPiece>,
+    /// Tree nodes still to visit: (level, index in the level).
+    stack: Vec<(u32, u32)>,
+}
+
+impl TileCuts {
+    /// Starts serving pixel centre `p` with `tree`: cuts made for another
+    /// tile or another tree (the scratch outlives a gather) are dropped.
+    fn enter(&mut self, tree: &PatchTree, p: [f64; 2], edges: usize) {
+        let side = CUT_TILE as f64;
+        let tile = [(p[0] / side).floor() as i32, (p[1] / side).floor() as i32];
+        if self.tile == Some(tile) && self.tree == Some(tree.id) && self.made.len() == edges {
+            return;
+        }
+        self.tile = Some(tile);
+        self.tree = Some(tree.id);
+        self.pieces.clear();
+        self.generation = self.generation.wrapping_add(1);
+        if self.generation == 0 || self.made.len() != edges {
+            self.made.clear();
+            self.made.resize(edges, (0, 0, 0));
+            self.generation = 1;
+        }
+    }
+
+    /// The cut of edge `ei` for the current tile.
+    fn of(
+        &mut self,
+        tree: &PatchTree,
+        edges: &[Edge],
+        patches: &Patches,
+        ei: usize,
+    ) -> &[CutPiece] {
+        let (g, from, to) = self.made[ei];
+        if g == self.generation {
+            return &self.pieces[from as usize..to as usize];
+        }
+        let tile = self.tile.expect("enter() comes first");
+        let from = self.pieces.len();
+        self.cut(tree, &edges[ei], patches, ei, tile);
+        self.made[ei] = (self.generation, from as u32, self.pieces.len() as u32);
+        &self.pieces[from..]
+    }
+
+    fn cut(&mut self, tree: &PatchTree, e: &Edge, patches: &Patches, ei: usize, tile: [i32; 2]) {
+        let (lo, hi) = e.extent();
+        let h = patches.step[ei];
+        let n = patches.of_edge(ei).len();
+        let levels = &tree.levels[tree.edge_levels[ei] as usize..tree.edge_levels[ei + 1] as usize];
+        // The tile's pixel centres: their nearest distance in front of the
+        // edge's line, and their range along its axis.
+        let side = CUT_TILE as f64;
+        let (x0, y0) = (tile[0] as f64 * side + 0.5, tile[1] as f64 * side + 0.5);
+        let (x1, y1) = (x0 + side - 1.0, y0 + side - 1.0);
+        let front = e
+            .front_distance([x0, y0])
+            .min(e.front_distance([x1, y1]))
+            .max(0.0);
+        let (ta, tb) = if e.normal.is_vertical_edge() {
+            (y0, y1)
+        } else {
+            (x0, x1)
+        };
+        let d2 = front * front;
+        self.stack.clear();
+        self.stack.push((levels.len() as u32 - 2, 0));
+        while let Some((lv, i)) = self.stack.pop() {
+            let (a, b) = node_range(lo, hi, h, n, lv, i as usize);
+            let nd = levels[lv as usize] as usize + i as usize;
+            let gap = (a - tb).max(ta - b).max(0.0);
+            if lv > 0 && d2 + gap * gap < tree.need[nd] {
+                // The right child pushed first, so that the left one comes first.
+                let below = levels[lv as usize] - levels[lv as usize - 1];
+                if 2 * i + 1 < below {
+                    self.stack.push((lv - 1, 2 * i + 1));
+                }
+                self.stack.push((lv - 1, 2 * i));
+                continue;
+            }
+            let first = (i as usize) << lv;
+            let last = (((i as usize + 1) << lv) - 1).min(n - 1);
+            self.pieces.push(CutPiece {
+                node: nd as u32,
+                b,
+                first: first as u32,
+                last: last as u32,
+            });
+        }
     }
 }
 
-/// Cuts the reflected light (`B - E`, linear along each piece) under `span`
-/// into pieces at the boundaries of the tree nodes that [`Near::whole`]
-/// accepts (down to single patches), in order along the edge, and queues
-/// them in `sc`: the span's start point, then each piece's end point and
-/// its node. Each piece boundary is one point.
+/// Queues the reflected light (`B - E`, quadratic along each piece) under
+/// `span` for pixel centre `p` at `foot` on the edge: the pieces of the
+/// tile's cut of the edge's tree that overlap the span, clipped to it, in
+/// order along the edge. The span's start point goes into `sc.pts`, then
+/// each piece's end point; each piece goes into `sc.pieces`.
 #[allow(clippy::too_many_arguments)]
 fn reflected_pieces(
     patches: &Patches,
@@ -488,63 +597,40 @@ fn reflected_pieces(
     edges: &[Edge],
     span: &Span,
     line: &GatherLine,
-    near: &Near,
+    foot: f64,
     sc: &mut PixelScratch,
     counts: &mut GatherCounts,
 ) {
     let ei = span.edge as usize;
-    let (lo, hi) = edges[ei].extent();
+    let (lo, _) = edges[ei].extent();
     let h = patches.step[ei];
     let n = patches.of_edge(ei).len();
-    let levels = &tree.levels[tree.edge_levels[ei] as usize..tree.edge_levels[ei + 1] as usize];
-    let foot = near.foot;
-    sc.pts.line(line);
-    sc.pts.push(span.s0 - foot);
-    let piece = |sc: &mut PixelScratch, node: usize, end: f64| {
-        sc.pts.push(end - foot);
-        sc.pieces.push(PieceAt {
-            node: node as u32,
-            end: sc.pts.len() as u32 - 1,
-            off: foot - tree.mid[node],
-        });
-    };
-    // Start at the smallest node holding the whole span: the patches of its
-    // two ends first differ in bit `top - 1` of their index.
     // (`as` truncates towards 0 and saturates: the floor, clamped at 0.)
     let patch_of = |s: f64| (((s - lo) / h) as usize).min(n - 1);
     let (j0, j1) = (patch_of(span.s0), patch_of(span.s1));
-    if j0 == j1 {
-        // Within one patch (most spans, on short edges): no walk.
+    let PixelScratch {
+        pts, pieces, cuts, ..
+    } = sc;
+    let cut = cuts.of(tree, edges, patches, ei);
+    pts.line(line);
+    pts.push(span.s0 - foot);
+    // The first piece that ends after the span starts.
+    let from = cut.partition_point(|c| c.b <= span.s0);
+    for c in &cut[from.min(cut.len() - 1)..] {
+        // The last piece ends the span.
+        let end = if c.last as usize >= j1 { span.s1 } else { c.b };
+        pts.push(end - foot);
+        pieces.push(PieceAt {
+            node: c.node,
+            end: pts.len() as u32 - 1,
+            off: foot - tree.mid[c.node as usize],
+        });
         counts.pieces += 1;
-        counts.patch_pieces += 1;
-        piece(sc, levels[0] as usize + j0, span.s1);
-        return;
-    }
-    let top = usize::BITS - (j0 ^ j1).leading_zeros();
-    sc.stack.clear();
-    sc.stack.push((top, (j0 >> top) as u32));
-    while let Some((lv, i)) = sc.stack.pop() {
-        let (a, b) = node_range(lo, hi, h, n, lv, i as usize);
-        let (a, b) = (a.max(span.s0), b.min(span.s1));
-        let nd = levels[lv as usize] as usize + i as usize;
-        if lv > 0 && !near.whole(tree.need[nd], a, b) {
-            // Children that overlap the span, the right one pushed first so
-            // that the left one is visited first.
-            let below = levels[lv as usize] - levels[lv as usize - 1];
-            let split = lo + ((2 * i as usize + 1) << (lv - 1)) as f64 * h;
-            if 2 * i + 1 < below && split < span.s1 {
-                sc.stack.push((lv - 1, 2 * i + 1));
-            }
-            if split > span.s0 {
-                sc.stack.push((lv - 1, 2 * i));
-            }
-            continue;
+        counts.patch_pieces +=
+            ((c.last as usize).min(j1) + 1).saturating_sub((c.first as usize).max(j0)) as u64;
+        if c.last as usize >= j1 {
+            break;
         }
-        // Patches of the node under the span; the last piece ends the span.
-        let (first, last) = ((i as usize) << lv, ((i as usize + 1) << lv) - 1);
-        counts.pieces += 1;
-        counts.patch_pieces += (last.min(j1) + 1).saturating_sub(first.max(j0)) as u64;
-        piece(sc, nd, if last >= j1 { span.s1 } else { b });
     }
 }
 

@@ -217,6 +217,76 @@ proptest! {
         check_gather(&l, patch_len, fall, seed, tolerance)?;
     }
 
+    /// A pixel's light does not depend on the pixels its scratch served
+    /// before (the patch trees are cut per tile and cached): scan order and
+    /// a shuffled order give the same bits.
+    #[test]
+    fn pixel_light_does_not_depend_on_the_previous_pixel(
+        l in level_strategy(),
+        fall in prop_oneof![Just(None), Just(Some(6.0))],
+        seed in any::<u64>(),
+    ) {
+        let g = trace(&l);
+        let patches = Patches::new(&g, 1.0);
+        let n = patches.len();
+        let b: Vec<Vec<f64>> = vec![(0..n).map(|p| 1.0 + 0.01 * p as f64).collect()];
+        let sl: Vec<Vec<f64>> = vec![(0..n).map(|p| 0.001 * (p % 7) as f64).collect()];
+        let e: Vec<Vec<f64>> = vec![g.edges.iter().map(|ed| l.materials[ed.material as usize].emission[0]).collect()];
+        let rad = Radiosity::new(&patches, &b, &sl, &e);
+        let falloff = fall.map(Falloff::new);
+        let tree = PatchTree::new(&g.edges, &patches, &rad, 0..1, falloff, 1e-3);
+        let all: Vec<u32> = (0..g.edges.len() as u32).collect();
+        let mut sw = Sweeper::new();
+        let mut points = Vec::new();
+        for y in 0..l.height {
+            for x in 0..l.width {
+                if let Some(comp) = g.component_at(x as i64, y as i64) {
+                    let p = [x as f64 + 0.5, y as f64 + 0.5];
+                    let mut spans = Vec::new();
+                    sw.sweep(&g.edges, &all, p, View::Full, comp, &mut spans);
+                    points.push((p, spans));
+                }
+            }
+        }
+        let light = |order: &[usize]| {
+            let mut scratch = PixelScratch::new();
+            let mut out = vec![0.0; points.len()];
+            for &i in order {
+                let mut acc = [0.0];
+                pixel_light(&g.edges, &patches, &rad, &tree, falloff, Kernel::Flatland,
+                    points[i].0, &points[i].1, &mut acc, &mut scratch);
+                out[i] = acc[0];
+            }
+            out
+        };
+        let scan: Vec<usize> = (0..points.len()).collect();
+        let mut shuffled = scan.clone();
+        let mut s = seed | 1;
+        for i in (1..shuffled.len()).rev() {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            shuffled.swap(i, (s % (i as u64 + 1)) as usize);
+        }
+        let (a, b) = (light(&scan), light(&shuffled));
+        for i in 0..a.len() {
+            prop_assert_eq!(a[i].to_bits(), b[i].to_bits(), "point {:?}", points[i].0);
+        }
+        // A scratch that served another tree (the same edges, other light:
+        // a later bake on the same thread) cuts this one afresh.
+        let b2: Vec<Vec<f64>> = vec![(0..n).map(|p| 3.0 - 0.02 * (p % 11) as f64).collect()];
+        let rad2 = Radiosity::new(&patches, &b2, &sl, &e);
+        let tree2 = PatchTree::new(&g.edges, &patches, &rad2, 0..1, falloff, 1e-3);
+        let mut used = PixelScratch::new();
+        for (p, spans) in &points {
+            let (mut first, mut second, mut fresh) = ([0.0], [0.0], [0.0]);
+            pixel_light(&g.edges, &patches, &rad, &tree, falloff, Kernel::Flatland, *p, spans, &mut first, &mut used);
+            pixel_light(&g.edges, &patches, &rad2, &tree2, falloff, Kernel::Flatland, *p, spans, &mut second, &mut used);
+            pixel_light(&g.edges, &patches, &rad2, &tree2, falloff, Kernel::Flatland, *p, spans, &mut fresh, &mut PixelScratch::new());
+            prop_assert_eq!(second[0].to_bits(), fresh[0].to_bits(), "point {:?}", p);
+        }
+    }
+
     #[test]
     fn sweeps_do_not_depend_on_the_previous_query(l in level_strategy(), seed in any::<u64>()) {
         let g = trace(&l);
