@@ -689,7 +689,7 @@ pub fn bake(
             &mut skipped,
             "gather",
             format!(
-                "{unreached_in_reach} floor pixels beyond the falloff reach of every lit edge (left at 0)"
+                "{unreached_in_reach} floor pixels that no lit edge reaches: every one is hidden from them or beyond its falloff reach (left at 0)"
             ),
         );
     }

@@ -23,7 +23,11 @@ use crate::transport::FormFactors;
 pub struct SolveSettings {
     /// Relative residual `|r| / |b|` the iterative solver must reach.
     pub tolerance: f64,
-    /// Unknown counts up to this use a dense Cholesky factorisation.
+    /// Unknown counts up to this use a dense Cholesky factorisation. Above
+    /// about 150 unknowns preconditioned CG is the faster (measured on the
+    /// sample and benchmark levels: 0.004 s against 0.074 s at 874 patches
+    /// and three channels, 0.0015 s against 0.015 s at 487); the dense
+    /// factorisation remains the fallback when CG does not converge.
     pub direct_max: usize,
     /// Dense fallback is allowed up to this size when CG fails to converge.
     pub fallback_max: usize,
@@ -33,7 +37,7 @@ impl Default for SolveSettings {
     fn default() -> Self {
         SolveSettings {
             tolerance: 1e-8,
-            direct_max: 1500,
+            direct_max: 200,
             fallback_max: 6000,
         }
     }

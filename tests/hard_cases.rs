@@ -279,10 +279,18 @@ fn hard_system() -> (flatbake::transport::FormFactors, Vec<f64>, Vec<f64>) {
     (ff, rho, e)
 }
 
+/// Settings that solve every system with the dense Cholesky factorisation.
+fn direct_only() -> SolveSettings {
+    SolveSettings {
+        direct_max: usize::MAX,
+        ..SolveSettings::default()
+    }
+}
+
 #[test]
 fn cg_that_stalls_falls_back_to_a_direct_solve() {
     let (ff, rho, e) = hard_system();
-    let direct = solve_channel(&ff, &rho, &e, &SolveSettings::default()).expect("direct");
+    let direct = solve_channel(&ff, &rho, &e, &direct_only()).expect("direct");
     assert_eq!(direct.method, "cholesky");
     // CG forced (direct_max 0) with a tolerance it cannot reach in its
     // iteration budget: it must not return its unconverged answer.
@@ -323,7 +331,7 @@ fn cg_that_cannot_converge_and_may_not_fall_back_is_an_error() {
 #[test]
 fn cg_that_converges_matches_the_direct_solve() {
     let (ff, rho, e) = hard_system();
-    let direct = solve_channel(&ff, &rho, &e, &SolveSettings::default()).expect("direct");
+    let direct = solve_channel(&ff, &rho, &e, &direct_only()).expect("direct");
     let cg = SolveSettings {
         tolerance: 1e-10,
         direct_max: 0,
