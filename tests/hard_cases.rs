@@ -887,8 +887,11 @@ proptest! {
         let (lvl, falloff) = random_level(seed);
         let mut s = settings(q);
         s.falloff = falloff;
+        // Energy balances to the solver's tolerance (1e-4 at draft: CG stops
+        // there; a direct solve would balance to rounding).
+        let energy_tol = s.knobs.tolerance.max(1e-5);
         match bake(&lvl, &s, &quiet) {
-            Ok(b) => check(&lvl, &b, 1e-5),
+            Ok(b) => check(&lvl, &b, energy_tol),
             // r = 1 rooms with light are the only refusal allowed.
             Err(BakeError::Unbounded { message }) => {
                 prop_assert!(message.contains("reflectance 1"), "{}", message)
