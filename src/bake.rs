@@ -666,7 +666,7 @@ pub fn bake(
                         &mut skipped,
                         "distant patches",
                         format!(
-                            "reflected light gathered as {} pieces for {} patch pieces (nearly linear runs far from the pixel taken whole; error at most {:e} of the brightest emission per pixel)",
+                            "reflected light gathered as {} pieces for {} patch pieces (nearly quadratic runs far from the pixel taken whole; error at most {:e} of the brightest emission per pixel)",
                             counts.pieces, counts.patch_pieces, reach_bound
                         ),
                     );
