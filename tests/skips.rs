@@ -216,7 +216,7 @@ fn falloff_reach_skip_stays_within_its_bound() {
     }
 }
 
-/// Far from a pixel, runs of patches whose reflected light is nearly linear
+/// Far from a pixel, runs of patches whose reflected light is nearly quadratic
 /// are gathered as one line; the merged pieces' errors are bounded by the
 /// tolerance times the angle they cover, so every pixel stays within
 /// `reach_bound` times the brightest emission of the exact gather.
