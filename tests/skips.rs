@@ -217,7 +217,7 @@ fn falloff_reach_skip_stays_within_its_bound() {
 }
 
 /// Far from a pixel, runs of patches whose reflected light is nearly quadratic
-/// are gathered as one line; the merged pieces' errors are bounded by the
+/// are gathered as one parabola; the merged pieces' errors are bounded by the
 /// tolerance times the angle they cover, so every pixel stays within
 /// `reach_bound` times the brightest emission of the exact gather.
 #[test]
