@@ -617,6 +617,17 @@ mod tests {
             .sum()
     }
 
+    /// No falloff, and falloffs below, near and far above the test lines'
+    /// distances.
+    fn falloffs() -> [Option<Falloff>; 4] {
+        [
+            None,
+            Some(Falloff::new(0.7)),
+            Some(Falloff::new(5.0)),
+            Some(Falloff::new(300.0)),
+        ]
+    }
+
     #[test]
     fn fast_atan_matches_the_library_atan() {
         let mut worst: f64 = 0.0;
@@ -724,12 +735,7 @@ mod tests {
 
     #[test]
     fn gather_closed_forms_match_quadrature() {
-        for fall in [
-            None,
-            Some(Falloff::new(0.7)),
-            Some(Falloff::new(5.0)),
-            Some(Falloff::new(300.0)),
-        ] {
+        for fall in falloffs() {
             let (d, t0, t1) = (2.3, -4.0, 7.5);
             let line = GatherLine::new(d, fall);
             let want = numeric(d, t0, t1, |_, r| fall.map_or(1.0, |f| f.weight(r)));
@@ -740,12 +746,7 @@ mod tests {
 
     #[test]
     fn linear_gather_closed_form_matches_quadrature() {
-        for fall in [
-            None,
-            Some(Falloff::new(0.7)),
-            Some(Falloff::new(5.0)),
-            Some(Falloff::new(300.0)),
-        ] {
+        for fall in falloffs() {
             let (d, t0, t1) = (2.3, -4.0, 7.5);
             let line = GatherLine::new(d, fall);
             let want = numeric(d, t0, t1, |psi, r| {
@@ -760,12 +761,7 @@ mod tests {
 
     #[test]
     fn quadratic_gather_closed_form_matches_quadrature() {
-        for fall in [
-            None,
-            Some(Falloff::new(0.7)),
-            Some(Falloff::new(5.0)),
-            Some(Falloff::new(300.0)),
-        ] {
+        for fall in falloffs() {
             let (d, t0, t1) = (2.3, -4.0, 7.5);
             let line = GatherLine::new(d, fall);
             let want = numeric(d, t0, t1, |psi, r| {
@@ -846,12 +842,7 @@ mod tests {
 
     #[test]
     fn factor_closed_forms_match_quadrature() {
-        for fall in [
-            None,
-            Some(Falloff::new(0.7)),
-            Some(Falloff::new(5.0)),
-            Some(Falloff::new(300.0)),
-        ] {
+        for fall in falloffs() {
             for (alpha, beta) in [(1.0, 0.0), (0.0, 1.0), (0.0, -1.0), (0.6, 0.8)] {
                 let (d, t0, t1) = (1.7, -3.0, 9.0);
                 let line = FactorLine::new(d, alpha, beta, fall);

@@ -42,6 +42,19 @@ fn level_strategy() -> impl Strategy<Value = Level> {
     })
 }
 
+/// `0..n` in an order shuffled by `seed` (Fisher-Yates, xorshift).
+fn shuffled(n: usize, seed: u64) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..n).collect();
+    let mut s = seed | 1;
+    for i in (1..n).rev() {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        order.swap(i, (s % (i as u64 + 1)) as usize);
+    }
+    order
+}
+
 /// The gather kernel as it was before batching: per piece, library `atan`.
 fn reference_light(
     edges: &[flatbake::geometry::Edge],
@@ -260,15 +273,7 @@ proptest! {
             out
         };
         let scan: Vec<usize> = (0..points.len()).collect();
-        let mut shuffled = scan.clone();
-        let mut s = seed | 1;
-        for i in (1..shuffled.len()).rev() {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            shuffled.swap(i, (s % (i as u64 + 1)) as usize);
-        }
-        let (a, b) = (light(&scan), light(&shuffled));
+        let (a, b) = (light(&scan), light(&shuffled(points.len(), seed)));
         for i in 0..a.len() {
             prop_assert_eq!(a[i].to_bits(), b[i].to_bits(), "point {:?}", points[i].0);
         }
@@ -309,14 +314,7 @@ proptest! {
             })
             .collect();
         // One sweeper reused over the points in a shuffled order.
-        let mut order: Vec<usize> = (0..points.len()).collect();
-        let mut s = seed | 1;
-        for i in (1..order.len()).rev() {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            order.swap(i, (s % (i as u64 + 1)) as usize);
-        }
+        let order = shuffled(points.len(), seed);
         let mut sw = Sweeper::new();
         for &i in &order {
             let (p, comp) = points[i];
