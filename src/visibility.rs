@@ -704,7 +704,7 @@ pub enum Reachable {
     /// The edge has no light at all.
     Never,
     /// Some points are: test each.
-    Some,
+    Partly,
 }
 
 impl Wanted<'_> {
@@ -735,7 +735,7 @@ impl Wanted<'_> {
             } else if corners.iter().all(|&c| e.distance_sq(c) <= r2) {
                 Reachable::All
             } else {
-                Reachable::Some
+                Reachable::Partly
             }
         }));
     }
