@@ -18,6 +18,7 @@ use crate::geometry::{Edge, Geometry};
 use crate::kernel::Reach;
 use crate::kernel::{Falloff, GatherLine, GatherPoints};
 use crate::level::{Cell, Level};
+use crate::marks::Marks;
 use crate::transport::{Patches, for_each_visibility};
 use crate::transport::{VisitStats, wanted_reach};
 use crate::visibility::{Span, TileTree, View};
@@ -493,9 +494,8 @@ struct TileCuts {
     /// The tree and the tile the cached cuts are for.
     tree: Option<u64>,
     tile: Option<[i32; 2]>,
-    generation: u32,
-    /// Per edge: the generation its cut was made in, and where it lies in `pieces`.
-    made: Vec<(u32, u32, u32)>,
+    /// Per edge whose cut is made: where it lies in `pieces`.
+    made: Marks<(u32, u32)>,
     pieces: Vec<CutPiece>,
     /// Tree nodes still to visit: (level, index in the level).
     stack: Vec<(u32, u32)>,
@@ -513,12 +513,7 @@ impl TileCuts {
         self.tile = Some(tile);
         self.tree = Some(tree.id);
         self.pieces.clear();
-        self.generation = self.generation.wrapping_add(1);
-        if self.generation == 0 || self.made.len() != edges {
-            self.made.clear();
-            self.made.resize(edges, (0, 0, 0));
-            self.generation = 1;
-        }
+        self.made.clear(edges);
     }
 
     /// The cut of edge `ei` for the current tile.
@@ -529,14 +524,13 @@ impl TileCuts {
         patches: &Patches,
         ei: usize,
     ) -> &[CutPiece] {
-        let (g, from, to) = self.made[ei];
-        if g == self.generation {
+        if let Some((from, to)) = self.made.get(ei) {
             return &self.pieces[from as usize..to as usize];
         }
         let tile = self.tile.expect("enter() comes first");
         let from = self.pieces.len();
         self.cut(tree, &edges[ei], patches, ei, tile);
-        self.made[ei] = (self.generation, from as u32, self.pieces.len() as u32);
+        self.made.set(ei, (from as u32, self.pieces.len() as u32));
         &self.pieces[from..]
     }
 

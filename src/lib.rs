@@ -23,6 +23,7 @@ pub mod kernel;
 pub mod layers;
 pub mod legend;
 pub mod level;
+pub mod marks;
 pub mod material;
 pub mod output;
 pub mod palette;

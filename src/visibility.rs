@@ -33,6 +33,7 @@
 //! long use the walk instead of the sweep.
 
 use crate::geometry::{Edge, Geometry, Normal, Run};
+use crate::marks::Marks;
 
 /// Which directions a query point looks into.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -771,10 +772,9 @@ pub struct Sweeper {
     codes: Vec<u32>,
     prev_shape: Vec<u32>,
     shape: Vec<u32>,
-    /// Per event id: `(generation, index in events)`.
-    slot: Vec<(u32, u32)>,
+    /// Per event id: its index in `events`, while not yet laid out.
+    slot: Marks<u32>,
     sorted: Vec<Event>,
-    sweep_generation: u32,
     /// Per piece: its index in `active`, or `u32::MAX`.
     at: Vec<u32>,
     /// Pieces inserted at the current event key.
@@ -782,8 +782,8 @@ pub struct Sweeper {
     active: Vec<u32>,
     cover: Coverage,
     stack: Vec<(u8, u32, u32)>,
-    stamp: Vec<u32>,
-    generation: u32,
+    /// Edges already inserted by the current walk.
+    inserted: Marks<()>,
 }
 
 impl Sweeper {
@@ -1011,33 +1011,21 @@ impl Sweeper {
     /// Lays `events` out in the previous sweep's order by id (the events
     /// of pieces that are new come last), into `sorted`.
     fn lay_out_by_id(&mut self, edges: usize) {
-        if self.slot.len() < edges * 4 {
-            self.slot = vec![(0, 0); edges * 4];
-            self.sweep_generation = 0;
-        }
-        self.sweep_generation = self.sweep_generation.wrapping_add(1);
-        if self.sweep_generation == 0 {
-            self.slot.fill((0, 0));
-            self.sweep_generation = 1;
-        }
-        let g = self.sweep_generation;
+        self.slot.clear(edges * 4);
         for (i, ev) in self.events.iter().enumerate() {
-            self.slot[ev.id() as usize] = (g, i as u32);
+            self.slot.set(ev.id() as usize, i as u32);
         }
         // Laid out in the previous order first, then the new ones; ties
         // between equal keys and ids (a repeated candidate) by `code`.
         let keys = &mut self.sorted;
         for &id in &self.order {
-            if let Some(&(sg, i)) = self.slot.get(id as usize)
-                && sg == g
-            {
+            if let Some(i) = self.slot.get(id as usize) {
                 keys.push(self.events[i as usize]);
-                // Taken: one generation back, never equal to `g` again soon.
-                self.slot[id as usize].0 = g.wrapping_sub(1);
+                self.slot.unset(id as usize);
             }
         }
         for ev in &self.events {
-            if self.slot[ev.id() as usize].0 == g {
+            if self.slot.get(ev.id() as usize).is_some() {
                 keys.push(*ev);
             }
         }
@@ -1051,10 +1039,9 @@ impl Sweeper {
     /// Adds edge `ei`'s visible pieces to the coverage, once per walk.
     #[inline]
     fn insert_edge(&mut self, q: &Query, edges: &[Edge], ei: u32, wanted: Option<Wanted>) {
-        if self.stamp[ei as usize] == self.generation {
+        if !self.inserted.insert(ei as usize) {
             return;
         }
-        self.stamp[ei as usize] = self.generation;
         let from = self.pieces.len();
         q.pieces(edges, ei, &mut self.pieces);
         if let Some(w) = wanted {
@@ -1103,15 +1090,7 @@ impl Sweeper {
         let q = Query::new(p, view, comp);
         self.pieces.clear();
         self.cover.reset(q.kmax());
-        if self.stamp.len() != edges.len() {
-            self.stamp = vec![0; edges.len()];
-            self.generation = 0;
-        }
-        self.generation = self.generation.wrapping_add(1);
-        if self.generation == 0 {
-            self.stamp.iter_mut().for_each(|s| *s = 0);
-            self.generation = 1;
-        }
+        self.inserted.clear(edges.len());
         for &ei in seeds {
             self.insert_edge(&q, edges, ei, wanted);
         }
@@ -1873,14 +1852,9 @@ impl<'g> TileTree<'g> {
             sweeper,
             spans,
             pooled,
-            stamp,
             arcs,
             bins,
         } = scratch;
-        if pooled.len() != self.boxes.rects.len() {
-            *pooled = vec![0; self.boxes.rects.len()];
-            *stamp = 0;
-        }
         for &(comp, _, px) in reps {
             let q = [px[0] as f64 + 0.5, px[1] as f64 + 0.5];
             spans.clear();
@@ -1926,21 +1900,16 @@ impl<'g> TileTree<'g> {
             // Boxes behind this component's candidates that touch neither
             // the zone nor (checked in box_hides) the edge, with their arcs.
             arcs.clear();
-            *stamp = stamp.wrapping_add(1);
-            if *stamp == 0 {
-                pooled.fill(0);
-                *stamp = 1;
-            }
+            pooled.clear(self.boxes.rects.len());
             for &ei in cands {
                 if g.edges[ei as usize].component != comp {
                     continue;
                 }
                 for &b in self.boxes.behind(ei) {
                     // Each box once.
-                    if pooled[b as usize] == *stamp {
+                    if !pooled.insert(b as usize) {
                         continue;
                     }
-                    pooled[b as usize] = *stamp;
                     let s = &self.boxes.rects[b as usize];
                     if zone.meets(&Zone::solid(s)) {
                         continue;
@@ -2033,9 +2002,8 @@ impl ArcBins {
 struct CullScratch {
     sweeper: Sweeper,
     spans: Vec<Span>,
-    /// Per box: the stamp of the last pool it joined.
-    pooled: Vec<u32>,
-    stamp: u32,
+    /// The boxes in the current pool.
+    pooled: Marks<()>,
     /// Pooled boxes and their arcs seen from the representative point.
     arcs: Vec<(u32, (f64, f64))>,
     bins: ArcBins,
