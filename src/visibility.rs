@@ -1496,18 +1496,22 @@ fn arc(q: [f64; 2], points: &[[f64; 2]]) -> (f64, f64) {
     (start, start + (hi - lo))
 }
 
+/// Rounding margin of [`arc_holds`], in pseudo-angle. [`ArcBins`] files
+/// each arc this much wider, so that every box whose arc holds an edge's
+/// start direction within the margin is under that direction's bin.
+const ARC_SLACK: f64 = 1e-9;
+
 /// Does arc `outer` hold arc `inner` (with a margin for rounding: this only
 /// picks which boxes to test exactly)?
 #[inline]
 fn arc_holds(outer: (f64, f64), inner: (f64, f64)) -> bool {
-    const SLACK: f64 = 1e-9;
     // Both start in [0, 4); the inner one may sit a turn later.
-    let (a, b) = if inner.0 < outer.0 - SLACK {
+    let (a, b) = if inner.0 < outer.0 - ARC_SLACK {
         (inner.0 + 4.0, inner.1 + 4.0)
     } else {
         inner
     };
-    a >= outer.0 - SLACK && b <= outer.1 + SLACK
+    a >= outer.0 - ARC_SLACK && b <= outer.1 + ARC_SLACK
 }
 
 /// Query points per rectangle, to weigh culled pairs (0: nothing to do there).
@@ -1964,12 +1968,11 @@ impl ArcBins {
     }
 
     fn fill(&mut self, arcs: &[(u32, (f64, f64))]) {
-        const SLACK: f64 = 1e-9;
         let per = Self::N as f64 / 4.0;
         // Bins `first..=last` of an arc, counted past N where it wraps.
         let span = |(a, b): (f64, f64)| {
-            let first = ((a - SLACK).max(0.0) * per) as usize;
-            let last = (((b + SLACK) * per) as usize).min(first + Self::N - 1);
+            let first = ((a - ARC_SLACK).max(0.0) * per) as usize;
+            let last = (((b + ARC_SLACK) * per) as usize).min(first + Self::N - 1);
             (first, last)
         };
         self.start.clear();
