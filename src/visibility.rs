@@ -1163,11 +1163,7 @@ impl Sweeper {
                 continue;
             }
             let (k0, k1) = (cover.start(i), cover.iv[i].end);
-            let v0 = if i == 0 {
-                self.pieces[o as usize].va
-            } else {
-                cover.iv[i - 1].vend
-            };
+            let v0 = if i == 0 { pc.va } else { cover.iv[i - 1].vend };
             self.emit(edges, p, o, k0, v0, k1, cover.iv[i].vend, out);
         }
         left_out
