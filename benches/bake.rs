@@ -13,14 +13,14 @@ use std::path::Path;
 use std::time::Duration;
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
-use flatbake::bake::{GatherMethod, Settings, bake};
-use flatbake::geometry;
-use flatbake::kernel::{Falloff, Reach};
-use flatbake::level::Level;
-use flatbake::palette::Palette;
-use flatbake::quality::Quality;
-use flatbake::synth::{self, Painted};
-use flatbake::transport::{self, Patches};
+use flatbake_core::bake::{GatherMethod, Settings, bake};
+use flatbake_core::geometry;
+use flatbake_core::level::Level;
+use flatbake_core::level::palette::Palette;
+use flatbake_core::quality::Quality;
+use flatbake_core::transport::kernel::{Falloff, Reach};
+use flatbake_core::transport::{self, Patches};
+use flatbake_synth::{self as synth, Painted};
 
 fn level(p: &Painted) -> (Level, Option<f64>) {
     let palette = Palette::parse(

@@ -4,7 +4,7 @@
 //!
 //! `cargo run --release --example layer_sum_check -- out/L.lightmap.exr out/L.layer-*.exr`
 
-use flatbake::output::read_lightmap_exr;
+use flatbake_core::output::read_lightmap_exr;
 
 fn main() -> Result<(), String> {
     let mut args = std::env::args().skip(1);

@@ -4,13 +4,13 @@
 //! cargo run --release --example make_levels [-- OUT_DIR] [--preview DIR]
 //! ```
 //!
-//! Every level is painted by `flatbake::synth` and written as `NAME.png`
+//! Every level is painted by `flatbake_synth` and written as `NAME.png`
 //! plus `NAME.palette.toml`. With `--preview DIR` each level is also baked at
 //! draft quality into DIR, to check exposure after changing a generator.
 
 use std::path::PathBuf;
 
-use flatbake::synth::{self, Painted};
+use flatbake_synth::{self as synth, Painted};
 
 /// The sample set: small enough that the whole folder bakes at several
 /// qualities in a few minutes on two cores, varied enough to show every
@@ -65,11 +65,11 @@ fn main() -> anyhow::Result<()> {
 
 /// Bakes `level` at draft quality and writes its lightmap and lit view.
 fn preview_bake(level: &Painted, dir: &std::path::Path) -> anyhow::Result<()> {
-    use flatbake::bake::{Settings, bake};
-    use flatbake::level::Level;
-    use flatbake::output::{OutputOptions, write_images};
-    use flatbake::palette::Palette;
-    use flatbake::quality::Quality;
+    use flatbake_core::bake::{Settings, bake};
+    use flatbake_core::level::Level;
+    use flatbake_core::level::palette::Palette;
+    use flatbake_core::output::{OutputOptions, write_images};
+    use flatbake_core::quality::Quality;
 
     std::fs::create_dir_all(dir)?;
     let path = dir.join(format!("{}.palette.toml", level.name));
@@ -95,7 +95,7 @@ fn preview_bake(level: &Painted, dir: &std::path::Path) -> anyhow::Result<()> {
         .cells
         .iter()
         .zip(&baked.lightmap.rgb)
-        .filter(|(c, _)| **c == flatbake::level::Cell::Floor)
+        .filter(|(c, _)| **c == flatbake_core::level::Cell::Floor)
         .map(|(_, v)| (v[0] + v[1] + v[2]) / 3.0)
         .collect();
     let mut sorted = floor.clone();

@@ -26,11 +26,11 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-use flatbake::bake::{GatherMethod, Settings, bake};
-use flatbake::level::{Cell, Level};
-use flatbake::palette::Palette;
-use flatbake::quality::Quality;
-use flatbake::synth::{self, Painted};
+use flatbake_core::bake::{GatherMethod, Settings, bake};
+use flatbake_core::level::palette::Palette;
+use flatbake_core::level::{Cell, Level};
+use flatbake_core::quality::Quality;
+use flatbake_synth::{self as synth, Painted};
 
 struct Run {
     wall: f64,

@@ -10,7 +10,7 @@
 
 use std::path::PathBuf;
 
-use flatbake::synth;
+use flatbake_synth as synth;
 
 fn main() -> anyhow::Result<()> {
     let mut args = std::env::args().skip(1);

@@ -11,10 +11,10 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use flatbake::bake::{Baked, Settings, bake};
-use flatbake::level::{Level, LoadLimits, load_level};
-use flatbake::palette::Palette;
-use flatbake::quality::Quality;
+use flatbake_core::bake::{Baked, Settings, bake};
+use flatbake_core::level::palette::Palette;
+use flatbake_core::level::{Level, LoadLimits, load_level};
+use flatbake_core::quality::Quality;
 
 fn main() -> anyhow::Result<()> {
     let mut paths = Vec::new();
@@ -38,7 +38,7 @@ fn main() -> anyhow::Result<()> {
         "| level | variant | default: solves | default: s | exhaustive: solves | exhaustive: s | saved | max diff | skipped |"
     );
     println!("|---|---|---:|---:|---:|---:|---:|---:|---|");
-    for path in flatbake::batch::collect_levels(&paths) {
+    for path in flatbake_core::batch::collect_levels(&paths) {
         let palette =
             Palette::resolve_for_level(&path, None).map_err(|e| anyhow::anyhow!("{e}"))?;
         let level = load_level(&path, &palette, LoadLimits::default())

@@ -13,12 +13,12 @@ use std::time::Duration;
 use clap::{Args, Parser, Subcommand};
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-use crate::bake::GatherMethod;
-use crate::batch::{self, BatchOptions, LevelOutcome, Observer};
-use crate::gather::Kernel;
-use crate::level::LoadLimits;
-use crate::output::Depth;
-use crate::quality::Quality;
+use flatbake_core::bake::GatherMethod;
+use flatbake_core::batch::{self, BatchOptions, LevelOutcome, Observer};
+use flatbake_core::gather::Kernel;
+use flatbake_core::level::LoadLimits;
+use flatbake_core::output::Depth;
+use flatbake_core::quality::Quality;
 
 /// Exit status when every level baked.
 pub const EXIT_OK: u8 = 0;
@@ -95,8 +95,8 @@ pub struct OutputArgs {
     #[arg(short = 'o', long = "out", default_value = "out")]
     pub out: PathBuf,
     /// Accuracy preset: draft (preview while painting), normal (daily), high (shipping), reference (converged).
-    #[arg(short, long, value_enum, default_value_t = Quality::Normal)]
-    pub quality: Quality,
+    #[arg(short, long, value_enum, default_value_t = QualityArg::Normal)]
+    pub quality: QualityArg,
     /// Light falloff: half-energy distance in pixels (overrides the palette).
     #[arg(long, value_name = "PIXELS")]
     pub falloff: Option<f64>,
@@ -150,8 +150,8 @@ pub struct BakeArgs {
     #[arg(long, value_enum, default_value_t = KernelArg::Flatland)]
     pub kernel: KernelArg,
     /// Floor gather: fast exact visibility, or the paper's naive ray tests (baseline).
-    #[arg(long, value_enum, default_value_t = GatherMethod::Fast)]
-    pub gather: GatherMethod,
+    #[arg(long, value_enum, default_value_t = GatherArg::Fast)]
+    pub gather: GatherArg,
     /// Truncate the bounce series: 0 = direct light only (overrides the palette).
     #[arg(long, value_name = "N")]
     pub bounces: Option<u32>,
@@ -178,6 +178,48 @@ fn parse_depth(s: &str) -> Result<u8, String> {
 pub enum KernelArg {
     Flatland,
     Paper,
+}
+
+/// `--quality`: the library's [`Quality`], spelled for clap.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum QualityArg {
+    /// Preview while painting.
+    Draft,
+    /// Daily bakes.
+    Normal,
+    /// Shipping.
+    High,
+    /// Converged: the yardstick the others are measured against.
+    Reference,
+}
+
+impl From<QualityArg> for Quality {
+    fn from(q: QualityArg) -> Quality {
+        match q {
+            QualityArg::Draft => Quality::Draft,
+            QualityArg::Normal => Quality::Normal,
+            QualityArg::High => Quality::High,
+            QualityArg::Reference => Quality::Reference,
+        }
+    }
+}
+
+/// `--gather`: the library's [`GatherMethod`], spelled for clap.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GatherArg {
+    /// Exact visible angles, tiled and parallel (the default).
+    Fast,
+    /// The paper's method: sampled rays per pixel and patch against every edge.
+    Naive,
+}
+
+impl From<GatherArg> for GatherMethod {
+    fn from(g: GatherArg) -> GatherMethod {
+        match g {
+            GatherArg::Fast => GatherMethod::Fast,
+            GatherArg::Naive => GatherMethod::Naive,
+        }
+    }
 }
 
 #[derive(Args, Debug)]
@@ -223,9 +265,17 @@ fn sweep(a: &SweepArgs) -> u8 {
     };
     spinner.enable_steady_tick(Duration::from_millis(120));
     let result = with_jobs(a.jobs, || {
-        crate::sweep::run(&a.levels, &a.out, &|msg| {
-            spinner.set_message(msg.to_string())
-        })
+        let (all, failures) =
+            flatbake_core::accuracy::run(&a.levels, &|msg| spinner.set_message(msg.to_string()));
+        flatbake_core::accuracy::write_tables(&a.out, &all)?;
+        let png = a.out.join("accuracy.png");
+        flatbake_core::output::write_atomic(&png, &crate::plot::plot(&all)?)
+            .map_err(|e| format!("cannot write {}: {e}", png.display()))?;
+        if failures.is_empty() {
+            Ok(all)
+        } else {
+            Err(failures.join("\n"))
+        }
     });
     spinner.finish_and_clear();
     match result {
@@ -279,13 +329,13 @@ pub fn batch_options(a: &BakeArgs) -> Result<BatchOptions, String> {
     }
     Ok(BatchOptions {
         out_dir: o.out.clone(),
-        quality: o.quality,
+        quality: o.quality.into(),
         falloff: o.falloff,
         kernel: match a.kernel {
             KernelArg::Flatland => Kernel::Flatland,
             KernelArg::Paper => Kernel::Paper,
         },
-        gather: a.gather,
+        gather: a.gather.into(),
         palette: o.palette.clone(),
         bounces: a.bounces,
         exposure: o.exposure,
@@ -356,7 +406,7 @@ fn bake(a: &BakeArgs) -> u8 {
 fn relight(a: &RelightArgs) -> u8 {
     let mut emission = Vec::new();
     for e in &a.emission {
-        match crate::cache::parse_emission(e) {
+        match flatbake_core::output::cache::parse_emission(e) {
             Ok(v) => emission.push(v),
             Err(msg) => {
                 eprintln!("flatbake: {msg}");
@@ -364,14 +414,14 @@ fn relight(a: &RelightArgs) -> u8 {
             }
         }
     }
-    let opts = crate::cache::RelightOptions {
+    let opts = flatbake_core::output::cache::RelightOptions {
         out_dir: a.out.clone(),
         emission,
         level_image: a.level.clone(),
         layers: a.layers,
         hdr: a.hdr,
     };
-    match crate::cache::relight(&a.cache, &opts) {
+    match flatbake_core::output::cache::relight(&a.cache, &opts) {
         Ok(report) => {
             if !a.quiet {
                 eprintln!(
@@ -396,7 +446,7 @@ fn watch(a: &WatchArgs) -> u8 {
         paths: vec![a.dir.clone()],
         output: a.output.clone(),
         kernel: KernelArg::Flatland,
-        gather: GatherMethod::Fast,
+        gather: GatherArg::Fast,
         bounces: None,
         max_pixels: LoadLimits::default().max_pixels,
         quiet: false,
@@ -451,18 +501,18 @@ fn outcome_line(o: &LevelOutcome) -> String {
 
 fn palette(a: &PaletteArgs) -> u8 {
     let pal = match &a.palette {
-        Some(p) => match crate::palette::Palette::load(p) {
+        Some(p) => match flatbake_core::level::palette::Palette::load(p) {
             Ok(p) => p,
             Err(e) => {
                 eprintln!("flatbake: {e}");
                 return EXIT_FAILED;
             }
         },
-        None => crate::palette::Palette::builtin(),
+        None => flatbake_core::level::palette::Palette::builtin(),
     };
     match &a.legend {
         Some(path) => match crate::legend::legend_png(&pal) {
-            Ok(bytes) => match crate::output::write_atomic(path, &bytes) {
+            Ok(bytes) => match flatbake_core::output::write_atomic(path, &bytes) {
                 Ok(()) => {
                     eprintln!("flatbake: wrote the palette legend to {}", path.display());
                     EXIT_OK
@@ -485,7 +535,7 @@ fn palette(a: &PaletteArgs) -> u8 {
 }
 
 /// The palette as a text table.
-fn describe(p: &crate::palette::Palette) -> String {
+fn describe(p: &flatbake_core::level::palette::Palette) -> String {
     use std::fmt::Write;
     let fmt3 = |v: [f64; 3]| {
         if v[0] == v[1] && v[1] == v[2] {
@@ -496,19 +546,19 @@ fn describe(p: &crate::palette::Palette) -> String {
     };
     let mut out = String::new();
     let origin = match &p.origin {
-        crate::palette::PaletteOrigin::BuiltIn => "built-in palette".to_string(),
-        crate::palette::PaletteOrigin::File(f) => f.display().to_string(),
+        flatbake_core::level::palette::PaletteOrigin::BuiltIn => "built-in palette".to_string(),
+        flatbake_core::level::palette::PaletteOrigin::File(f) => f.display().to_string(),
     };
     let _ = writeln!(out, "{origin}");
     for m in &p.solids {
         let _ = match m.kind {
-            crate::material::MaterialKind::Wall => writeln!(
+            flatbake_core::level::material::MaterialKind::Wall => writeln!(
                 out,
                 "  {}  wall     reflectance {}",
                 m.hex(),
                 fmt3(m.reflectance)
             ),
-            crate::material::MaterialKind::Emitter => writeln!(
+            flatbake_core::level::material::MaterialKind::Emitter => writeln!(
                 out,
                 "  {}  emitter  emission {}  reflectance {}",
                 m.hex(),
@@ -521,7 +571,7 @@ fn describe(p: &crate::palette::Palette) -> String {
         let _ = writeln!(
             out,
             "  {}  floor    albedo {}",
-            crate::material::hex_color(f.color),
+            flatbake_core::level::material::hex_color(f.color),
             fmt3(f.albedo)
         );
     }

@@ -12,8 +12,8 @@ use image::{ImageEncoder, Rgba, RgbaImage};
 use imageproc::drawing::{draw_filled_rect_mut, draw_hollow_rect_mut, draw_text_mut, text_size};
 use imageproc::rect::Rect;
 
-use crate::material::{MaterialKind, Rgb, hex_color};
-use crate::palette::{Palette, PaletteOrigin, kind_word};
+use flatbake_core::level::material::{MaterialKind, Rgb, hex_color};
+use flatbake_core::level::palette::{Palette, PaletteOrigin, kind_word};
 
 static FONT_BYTES: &[u8] = include_bytes!("../assets/fonts/DejaVuSansMono.ttf");
 
@@ -205,5 +205,72 @@ fn rgb_text(v: Rgb) -> String {
         format!("{}", v[0])
     } else {
         format!("[{}, {}, {}]", v[0], v[1], v[2])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::collections::HashSet;
+    use std::path::Path;
+
+    fn parse(text: &str) -> Palette {
+        Palette::parse(text, Path::new("levels/x.palette.toml")).expect("palette parses")
+    }
+
+    const GOOD: &str = r##"
+[[wall]]
+color = "#5a5a5a"
+reflectance = 0.6
+name = "stone"
+
+[[emitter]]
+color = "#FFFADC"
+emission = [2.0, 2, 2.5]
+reflectance = 0.5
+group = "hall"
+
+[[emitter]]
+color = [255, 0, 0]
+emission = 1
+
+[[floor]]
+color = "#b4aa96"
+albedo = [0.5, 0.5, 0.5]
+name = "sand"
+"##;
+
+    #[test]
+    fn legend_grows_with_entries_and_is_not_blank() {
+        let small = parse("[[wall]]\ncolor = \"#000\"\nreflectance = 0.5\n");
+        let big = parse(GOOD);
+        let a = draw_legend(&small);
+        let b = draw_legend(&big);
+        assert!(b.height() > a.height(), "{} vs {}", b.height(), a.height());
+        let builtin = draw_legend(&Palette::builtin());
+        assert!(builtin.height() > b.height());
+        for img in [&a, &b, &builtin] {
+            let distinct: HashSet<[u8; 4]> = img.pixels().map(|p| p.0).collect();
+            // Background, text anti-aliasing shades and swatches: far from blank.
+            assert!(distinct.len() > 10, "only {} colours", distinct.len());
+        }
+        // The swatch colours themselves appear in the image.
+        let has = |img: &image::RgbaImage, c: [u8; 3]| {
+            img.pixels().any(|p| p.0 == [c[0], c[1], c[2], 255])
+        };
+        assert!(has(&b, [0xff, 0xfa, 0xdc]) && has(&b, [0xb4, 0xaa, 0x96]) && has(&b, [255, 0, 0]));
+        for m in &Palette::builtin().solids {
+            assert!(has(&builtin, m.color), "swatch {} missing", m.hex());
+        }
+        let png = legend_png(&big).unwrap();
+        let back = image::load_from_memory(&png).unwrap().to_rgba8();
+        assert_eq!(back.dimensions(), b.dimensions());
+        assert!(back.pixels().zip(b.pixels()).all(|(x, y)| x == y));
+    }
+
+    #[test]
+    fn legend_of_empty_palette_still_draws() {
+        let img = draw_legend(&parse(""));
+        assert!(img.width() > 50 && img.height() > 20);
     }
 }

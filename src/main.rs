@@ -1,5 +1,10 @@
-//! The `flatbake` binary: everything lives in the library; see `flatbake::cli`.
+//! The `flatbake` binary: the command line over the `flatbake-core` library.
+
+mod cli;
+mod legend;
+mod plot;
+mod watch;
 
 fn main() -> std::process::ExitCode {
-    flatbake::cli::main()
+    cli::main()
 }

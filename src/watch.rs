@@ -18,7 +18,7 @@ use std::time::Duration;
 use notify::{EventKind, RecursiveMode};
 use notify_debouncer_full::{DebounceEventResult, new_debouncer};
 
-use crate::batch::{self, BatchOptions, LevelOutcome, Silent};
+use flatbake_core::batch::{self, BatchOptions, LevelOutcome, Silent};
 
 /// How a watch runs.
 #[derive(Clone, Debug)]
@@ -135,4 +135,132 @@ pub fn run(
     }
     debouncer.stop();
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use flatbake_core::quality::Quality;
+
+    /// A 24 x 16 room of built-in grey wall (`#5a5a5a`) with a white
+    /// (built-in emitter) lamp in its top wall and a pillar in the middle.
+    fn write_room(dir: &Path, name: &str) -> PathBuf {
+        let (w, h) = (24u32, 16u32);
+        let img = image::RgbaImage::from_fn(w, h, |x, y| {
+            let border = x == 0 || y == 0 || x == w - 1 || y == h - 1;
+            let c = if y == 0 && (8..12).contains(&x) {
+                [255, 255, 255]
+            } else if border || ((10..13).contains(&x) && (6..10).contains(&y)) {
+                [0x5a, 0x5a, 0x5a]
+            } else {
+                [0xb0, 0xa0, 0x90]
+            };
+            image::Rgba([c[0], c[1], c[2], 255])
+        });
+        let png = dir.join(format!("{name}.png"));
+        img.save(&png).expect("write level png");
+        png
+    }
+
+    /// Waits up to 20 s for an event that `want` accepts, passing over others.
+    fn wait_for(
+        rx: &mpsc::Receiver<WatchEvent>,
+        what: &str,
+        want: impl Fn(&WatchEvent) -> bool,
+    ) -> WatchEvent {
+        let deadline = std::time::Instant::now() + Duration::from_secs(20);
+        loop {
+            let left = deadline.saturating_duration_since(std::time::Instant::now());
+            match rx.recv_timeout(left) {
+                Ok(ev) if want(&ev) => return ev,
+                Ok(_) => continue,
+                Err(_) => panic!("no {what} within 20 s"),
+            }
+        }
+    }
+
+    #[test]
+    fn watch_bakes_after_a_save_and_survives_a_broken_level() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let levels = dir.path().join("levels");
+        std::fs::create_dir(&levels).expect("mkdir");
+        let png = write_room(&levels, "room");
+        let out = dir.path().join("out");
+        let opts = WatchOptions {
+            dir: levels.clone(),
+            batch: BatchOptions {
+                out_dir: out.clone(),
+                quality: Quality::Draft,
+                ..BatchOptions::default()
+            },
+            debounce: Duration::from_millis(100),
+        };
+        let stop = AtomicBool::new(false);
+        let (tx, rx) = mpsc::channel();
+        let is_room = |p: &Path| p.file_name() == png.file_name();
+        std::thread::scope(|scope| {
+            let handle = scope.spawn(|| run(&opts, &stop, &mut |ev| drop(tx.send(ev))));
+            let first = wait_for(&rx, "first bake", |e| matches!(e, WatchEvent::Level(_)));
+            assert!(
+                matches!(&first, WatchEvent::Level(LevelOutcome::Baked { path, .. }) if is_room(path)),
+                "{first:?}"
+            );
+            wait_for(&rx, "watching", |e| {
+                matches!(e, WatchEvent::Watching { .. })
+            });
+            let before = std::fs::read(out.join("room.lightmap.png")).expect("baked");
+
+            // A broken palette: the level fails, the watcher goes on.
+            std::fs::write(levels.join("room.palette.toml"), "[[wall]\ncolor = ").expect("write");
+            let failed = wait_for(&rx, "failed bake", |e| {
+                matches!(e, WatchEvent::Level(LevelOutcome::Failed { .. }))
+            });
+            let WatchEvent::Level(LevelOutcome::Failed { error, .. }) = failed else {
+                unreachable!()
+            };
+            assert!(error.to_string().contains("room.palette.toml"), "{error}");
+
+            // Fixed with a brighter lamp: baked again, and the output changes.
+            std::fs::write(
+                levels.join("room.palette.toml"),
+                "[[emitter]]\ncolor = \"#ffffff\"\nemission = 8.0\n",
+            )
+            .expect("write");
+            wait_for(
+                &rx,
+                "bake after the fix",
+                |e| matches!(e, WatchEvent::Level(LevelOutcome::Baked { path, .. }) if is_room(path)),
+            );
+            let after = std::fs::read(out.join("room.lightmap.png")).expect("baked");
+            assert_ne!(before, after, "the new palette shows in the lightmap");
+
+            // A new level painted into the folder is baked too.
+            write_room(&levels, "second");
+            wait_for(&rx, "bake of a new level", |e| {
+                matches!(e, WatchEvent::Level(LevelOutcome::Baked { path, .. })
+                    if path.file_name().is_some_and(|n| n == "second.png"))
+            });
+
+            stop.store(true, Ordering::Relaxed);
+            let r = handle.join().expect("watch thread");
+            assert!(r.is_ok(), "{r:?}");
+        });
+    }
+
+    #[test]
+    fn watch_maps_files_to_levels() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let d = dir.path();
+        let a = write_room(d, "a");
+        let b = write_room(d, "b");
+        std::fs::write(d.join("a.lightmap.png"), b"not a level").expect("write");
+        assert_eq!(affected_levels(d, &d.join("a.png")), vec![a.clone()]);
+        assert_eq!(
+            affected_levels(d, &d.join("b.palette.toml")),
+            vec![b.clone()]
+        );
+        assert_eq!(affected_levels(d, &d.join("palette.toml")), vec![a, b]);
+        assert!(affected_levels(d, &d.join("a.lightmap.png")).is_empty());
+        assert!(affected_levels(d, &d.join(".flatbake-x.tmp")).is_empty());
+    }
 }

@@ -6,11 +6,11 @@
 mod common;
 use common::*;
 
-use flatbake::bake::{Settings, bake};
-use flatbake::level::Level;
-use flatbake::material::Material;
-use flatbake::quality::{Knobs, Quality};
-use flatbake::sweep::{REFERENCE_TOLERANCE, compare};
+use flatbake_core::accuracy::{REFERENCE_TOLERANCE, compare};
+use flatbake_core::bake::{Settings, bake};
+use flatbake_core::level::Level;
+use flatbake_core::level::material::Material;
+use flatbake_core::quality::{Knobs, Quality};
 
 /// A level from a per-pixel rule: `Some(k)` is material `k`, `None` floor.
 fn level_from(

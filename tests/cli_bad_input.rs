@@ -1,7 +1,7 @@
 //! Bad input through the command line (issue 4): every broken file, palette
 //! or output folder gets a clear message naming it, good levels in the same
 //! batch still bake, earlier good outputs survive, and the exit status says
-//! something failed (see the exit codes in `flatbake::cli`).
+//! something failed (0 baked, 1 a level failed, 2 a bad command line).
 //!
 //! The library-level details (every palette message word for word, every
 //! image variant's pixels) are in `tests/palette.rs` and
@@ -10,7 +10,10 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use flatbake::cli::{EXIT_FAILED, EXIT_OK, EXIT_USAGE};
+/// The binary's exit statuses (its `--help` states them).
+const EXIT_OK: u8 = 0;
+const EXIT_FAILED: u8 = 1;
+const EXIT_USAGE: u8 = 2;
 
 fn fixture(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -530,7 +533,7 @@ fn full_disk_says_so_and_earlier_outputs_survive() {
     let dir = tempfile::tempdir().unwrap();
     let lvl = paint(dir.path(), "room", ROOM, Some(PALETTE));
     let big = dir.path().join("big.png");
-    flatbake::synth::cornell(96).to_image().save(&big).unwrap();
+    flatbake_synth::cornell(96).to_image().save(&big).unwrap();
     let mnt = dir.path().join("small");
     let Some(_m) = Mount::tmpfs(&mnt, "size=256k") else {
         eprintln!("skipped: cannot mount a tmpfs here (needs root)");
@@ -567,7 +570,7 @@ fn batch_bakes_every_good_level_and_names_every_bad_one() {
     let levels = dir.path().join("levels");
     std::fs::create_dir(&levels).unwrap();
     let out = dir.path().join("out");
-    flatbake::synth::cornell(48).save(&levels).unwrap();
+    flatbake_synth::cornell(48).save(&levels).unwrap();
     paint(&levels, "good_room", ROOM, Some(PALETTE));
     copy(&levels, "rgb16_room.png", "good_16bit.png");
     copy(&levels, "truncated_room.png", "bad_truncated.png");

@@ -3,10 +3,10 @@
 mod common;
 use common::*;
 
-use flatbake::bake::{Settings, bake};
-use flatbake::geometry::trace;
-use flatbake::quality::Quality;
-use flatbake::transport::{Patches, form_factors};
+use flatbake_core::bake::{Settings, bake};
+use flatbake_core::geometry::trace;
+use flatbake_core::quality::Quality;
+use flatbake_core::transport::{Patches, form_factors};
 
 fn quiet(_: &str) {}
 
@@ -28,7 +28,7 @@ fn closed_room_is_e_over_one_minus_r() {
                 );
             }
             for (i, c) in lvl.cells.iter().enumerate() {
-                if *c == flatbake::level::Cell::Floor {
+                if *c == flatbake_core::level::Cell::Floor {
                     let v = baked.lightmap.rgb[i][0] as f64;
                     assert!(
                         (v / want - 1.0).abs() < 1e-5,
@@ -61,7 +61,7 @@ fn rows_sum_to_one_in_a_closed_room_and_reciprocity_holds() {
             &p,
             k.quad,
             None,
-            &flatbake::kernel::Reach::unlimited(g.edges.len()),
+            &flatbake_core::transport::kernel::Reach::unlimited(g.edges.len()),
         );
         let mut worst: f64 = 0.0;
         for i in 0..p.len() {
@@ -103,7 +103,7 @@ fn lone_emitter_reads_its_subtended_angle() {
         let baked = bake(&lvl, &Settings::new(q), &quiet).unwrap();
         for y in 0..15 {
             for x in 0..20 {
-                if lvl.cell(x, y) != flatbake::level::Cell::Floor {
+                if lvl.cell(x, y) != flatbake_core::level::Cell::Floor {
                     continue;
                 }
                 let p = [x as f64 + 0.5, y as f64 + 0.5];
@@ -160,7 +160,7 @@ fn dark_room_behind_diagonal_wall_is_exactly_zero() {
         let mut lit = 0;
         for y in 0..lvl.height {
             for x in 0..lvl.width {
-                if lvl.cell(x, y) != flatbake::level::Cell::Floor {
+                if lvl.cell(x, y) != flatbake_core::level::Cell::Floor {
                     continue;
                 }
                 let v = baked.lightmap.rgb[y * lvl.width + x][0];

@@ -11,12 +11,12 @@ use common::*;
 
 use std::f64::consts::TAU;
 
-use flatbake::gather::{Kernel, PatchTree, PixelScratch, Radiosity, pixel_light};
-use flatbake::geometry::trace;
-use flatbake::kernel::Falloff;
-use flatbake::level::Level;
-use flatbake::transport::Patches;
-use flatbake::visibility::{Span, Sweeper, View};
+use flatbake_core::gather::{Kernel, PatchTree, PixelScratch, Radiosity, pixel_light};
+use flatbake_core::geometry::trace;
+use flatbake_core::level::Level;
+use flatbake_core::transport::Patches;
+use flatbake_core::transport::kernel::Falloff;
+use flatbake_core::visibility::{Span, Sweeper, View};
 use proptest::prelude::*;
 
 fn level_strategy() -> impl Strategy<Value = Level> {
@@ -57,7 +57,7 @@ fn shuffled(n: usize, seed: u64) -> Vec<usize> {
 
 /// The gather kernel as it was before batching: per piece, library `atan`.
 fn reference_light(
-    edges: &[flatbake::geometry::Edge],
+    edges: &[flatbake_core::geometry::Edge],
     patches: &Patches,
     rad: &Radiosity,
     falloff: Option<Falloff>,

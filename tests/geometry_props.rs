@@ -5,8 +5,8 @@ use common::*;
 
 use std::collections::HashMap;
 
-use flatbake::geometry::{Geometry, Normal, trace};
-use flatbake::level::{Cell, Level};
+use flatbake_core::geometry::{Geometry, Normal, trace};
+use flatbake_core::level::{Cell, Level};
 use proptest::prelude::*;
 
 /// A random level: each pixel floor, void, or one of two wall materials.

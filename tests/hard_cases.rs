@@ -11,15 +11,15 @@ use common::*;
 
 use std::f64::consts::{PI, TAU};
 
-use flatbake::bake::{BakeError, Baked, Settings, bake};
-use flatbake::gather::Kernel;
-use flatbake::geometry::trace;
-use flatbake::kernel::Reach;
-use flatbake::level::{Cell, Level};
-use flatbake::palette::Palette;
-use flatbake::quality::Quality;
-use flatbake::solve::{SolveError, SolveSettings, solve_channel};
-use flatbake::transport::{Patches, form_factors};
+use flatbake_core::bake::{BakeError, Baked, Settings, bake};
+use flatbake_core::gather::Kernel;
+use flatbake_core::geometry::trace;
+use flatbake_core::level::palette::Palette;
+use flatbake_core::level::{Cell, Level};
+use flatbake_core::quality::Quality;
+use flatbake_core::transport::kernel::Reach;
+use flatbake_core::transport::solve::{SolveError, SolveSettings, solve_channel};
+use flatbake_core::transport::{Patches, form_factors};
 use proptest::prelude::*;
 
 fn quiet(_: &str) {}
@@ -263,7 +263,7 @@ fn open_scenes_with_r_1_solve_and_everything_escapes() {
 
 /// Form factors of a near-mirror room with many patches: CG needs many
 /// iterations here.
-fn hard_system() -> (flatbake::transport::FormFactors, Vec<f64>, Vec<f64>) {
+fn hard_system() -> (flatbake_core::transport::FormFactors, Vec<f64>, Vec<f64>) {
     let rows = room_with(40, 30, &[(20, 0), (0, 15)]);
     let lvl = ascii(
         &refs(&rows),
@@ -837,7 +837,7 @@ fn paper_kernel_on_a_near_mirror_closed_room_is_finite_with_a_warning() {
         );
         assert!(floor_values(&lvl, &b).iter().all(|v| v.2 > 0.0));
         // Rescaled rows keep rho F below 1: B is bounded by e / (1 - MAX_ROW).
-        let bound = 1.0 / (1.0 - flatbake::paper::MAX_ROW);
+        let bound = 1.0 / (1.0 - flatbake_core::transport::paper::MAX_ROW);
         for v in &b.radiosity[0] {
             assert!(*v <= bound * (1.0 + 1e-9), "r={r}: {v} > {bound}");
         }
@@ -851,12 +851,12 @@ fn paper_kernel_on_a_near_mirror_closed_room_is_finite_with_a_warning() {
 /// capped at MAX_ROW, and both paths agree on the capped system.
 #[test]
 fn paper_rows_just_below_1_converge_on_large_systems() {
-    let max_row = flatbake::paper::MAX_ROW;
+    let max_row = flatbake_core::transport::paper::MAX_ROW;
     for n in [100, 3000] {
         let rows: Vec<Vec<(u32, f64)>> = (0..n).map(|i| vec![(i as u32, 1.0)]).collect();
         let rho = vec![0.99999; n];
         let e = vec![1.0; n];
-        let (b, _) = flatbake::paper::solve(&rows, &rho, &e, 1e-10);
+        let (b, _) = flatbake_core::transport::paper::solve(&rows, &rho, &e, 1e-10);
         let want = 1.0 / (1.0 - max_row);
         for v in &b {
             assert!((v / want - 1.0).abs() < 1e-6, "n={n}: {v} vs {want}");
@@ -869,7 +869,7 @@ fn paper_rows_just_below_1_converge_on_large_systems() {
 
 /// A random small level and palette from the synthetic generator.
 fn random_level(seed: u64) -> (Level, Option<f64>) {
-    let p = flatbake::synth::random_small(seed);
+    let p = flatbake_synth::random_small(seed);
     let pal = Palette::parse(&p.palette_toml, std::path::Path::new("random.palette.toml"))
         .unwrap_or_else(|e| panic!("seed {seed}: {e}"));
     let lvl = Level::from_rgba(&p.name, p.width, p.height, &p.rgba, &pal);
@@ -957,9 +957,9 @@ fn run_bake(args: &[&std::ffi::OsStr]) -> std::process::Output {
 fn jobs_1_and_jobs_2_write_identical_bytes() {
     let dir = tempfile::tempdir().unwrap();
     let levels = dir.path().join("levels");
-    flatbake::synth::cornell(64).save(&levels).unwrap();
-    flatbake::synth::random_small(3).save(&levels).unwrap();
-    flatbake::synth::random_small(11).save(&levels).unwrap();
+    flatbake_synth::cornell(64).save(&levels).unwrap();
+    flatbake_synth::random_small(3).save(&levels).unwrap();
+    flatbake_synth::random_small(11).save(&levels).unwrap();
     let mut outs = Vec::new();
     for jobs in ["1", "2"] {
         let out = dir.path().join(format!("out{jobs}"));

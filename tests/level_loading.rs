@@ -12,11 +12,11 @@
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use flatbake::level::{
+use flatbake_core::level::material::{MaterialKind, srgb_to_linear};
+use flatbake_core::level::palette::Palette;
+use flatbake_core::level::{
     Cell, Level, LevelError, LoadLimits, NEAR_MISS_DISTANCE, load_level, read_image,
 };
-use flatbake::material::{MaterialKind, srgb_to_linear};
-use flatbake::palette::Palette;
 
 // ---------------------------------------------------------------- PNG writer
 
@@ -775,7 +775,7 @@ fn large_antialiased_level_counts_every_near_miss() {
 
 mod properties {
     use super::*;
-    use flatbake::palette::ColorClass;
+    use flatbake_core::level::palette::ColorClass;
     use proptest::prelude::*;
 
     /// A few colours near and far from the test palette's wall, light and floor.

@@ -6,13 +6,13 @@ use std::fs;
 use std::io;
 use std::path::{Path, PathBuf};
 
-use flatbake::level::{Cell, Level};
-use flatbake::material::{Material, MaterialKind};
-use flatbake::output::{
+use flatbake_core::bake::report::Report;
+use flatbake_core::level::material::{Material, MaterialKind};
+use flatbake_core::level::{Cell, Level};
+use flatbake_core::output::{
     Depth, Lightmap, OutputError, OutputOptions, RGBM_RANGE, ensure_output_dir, read_lightmap_exr,
     rgbm_decode, rgbm_encode, write_file_atomic, write_level_outputs,
 };
-use flatbake::report::Report;
 use image::{ColorType, DynamicImage};
 
 /// sRGB encoding written out here so the tests do not trust the library's.

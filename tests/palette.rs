@@ -1,13 +1,12 @@
-//! Palette parsing, lookup order, the built-in palette and the legend
+//! Palette parsing, lookup order and the built-in palette
 //! (SPEC section 2). Every malformed palette must fail with the right line
 //! and words, because designers fix palettes by reading those messages.
 
 use std::collections::HashSet;
 use std::path::Path;
 
-use flatbake::legend::{draw_legend, legend_png};
-use flatbake::material::MaterialKind;
-use flatbake::palette::{ColorClass, Palette, PaletteError, PaletteOrigin, parse_hex};
+use flatbake_core::level::material::MaterialKind;
+use flatbake_core::level::palette::{ColorClass, Palette, PaletteError, PaletteOrigin, parse_hex};
 
 fn parse(text: &str) -> Result<Palette, PaletteError> {
     Palette::parse(text, Path::new("levels/x.palette.toml"))
@@ -582,69 +581,6 @@ fn builtin_palette_is_valid_and_has_no_duplicates() {
         Some("emitter #ffffff (white light)".into())
     );
     assert_eq!(p.solids[0].color, [0, 0, 0]);
-}
-
-#[test]
-fn legend_grows_with_entries_and_is_not_blank() {
-    let small = parse("[[wall]]\ncolor = \"#000\"\nreflectance = 0.5\n").unwrap();
-    let big = parse(GOOD).unwrap();
-    let a = draw_legend(&small);
-    let b = draw_legend(&big);
-    assert!(b.height() > a.height(), "{} vs {}", b.height(), a.height());
-    let builtin = draw_legend(&Palette::builtin());
-    assert!(builtin.height() > b.height());
-    for img in [&a, &b, &builtin] {
-        let distinct: HashSet<[u8; 4]> = img.pixels().map(|p| p.0).collect();
-        // Background, text anti-aliasing shades and swatches: far from blank.
-        assert!(distinct.len() > 10, "only {} colours", distinct.len());
-    }
-    // The swatch colours themselves appear in the image.
-    let has =
-        |img: &image::RgbaImage, c: [u8; 3]| img.pixels().any(|p| p.0 == [c[0], c[1], c[2], 255]);
-    assert!(has(&b, [0xff, 0xfa, 0xdc]) && has(&b, [0xb4, 0xaa, 0x96]) && has(&b, [255, 0, 0]));
-    for m in &Palette::builtin().solids {
-        assert!(has(&builtin, m.color), "swatch {} missing", m.hex());
-    }
-    let png = legend_png(&big).unwrap();
-    let back = image::load_from_memory(&png).unwrap().to_rgba8();
-    assert_eq!(back.dimensions(), b.dimensions());
-    assert!(back.pixels().zip(b.pixels()).all(|(x, y)| x == y));
-}
-
-#[test]
-fn legend_of_empty_palette_still_draws() {
-    let img = draw_legend(&parse("").unwrap());
-    assert!(img.width() > 50 && img.height() > 20);
-}
-
-/// Set `FLATBAKE_LEGEND_OUT=DIR` to write legend images for a visual check.
-#[test]
-fn write_legends_for_inspection() {
-    let Some(dir) = std::env::var_os("FLATBAKE_LEGEND_OUT") else {
-        return;
-    };
-    let dir = Path::new(&dir);
-    std::fs::write(
-        dir.join("builtin.png"),
-        legend_png(&Palette::builtin()).unwrap(),
-    )
-    .unwrap();
-    std::fs::write(
-        dir.join("good.png"),
-        legend_png(&parse(GOOD).unwrap()).unwrap(),
-    )
-    .unwrap();
-    for bad in [
-        "[[wall]]\ncolour = \"#000000\"\nreflectance = 0.5\n",
-        "[[wall]]\ncolor = \"#abc\"\nreflectance = 0.5\n\n[[emitter]]\ncolor = \"#AABBCC\"\nemission = 1\n",
-        "[[wall]]\ncolor = \"#000000\"\nreflectance = \n",
-        "[[wall]]\ncolor = \"#000000\nreflectance = 0.5\n",
-        "[[wall]]\ncolor = [1.5, 0, 0]\nreflectance = 0.5\n",
-        "[bake]\ntolerance = 300\n",
-        "[wall]\ncolor = \"#000\"\n",
-    ] {
-        eprintln!("{}", parse(bad).unwrap_err());
-    }
 }
 
 mod properties {

@@ -6,18 +6,14 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc;
 use std::time::Duration;
 
-use flatbake::bake::{self, Settings};
-use flatbake::batch::{BatchOptions, LevelOutcome};
-use flatbake::layers;
-use flatbake::level::Level;
-use flatbake::output::read_lightmap_exr;
-use flatbake::palette::Palette;
-use flatbake::quality::Quality;
-use flatbake::watch::{self, WatchEvent, WatchOptions};
+use flatbake_core::bake::{self, Settings};
+use flatbake_core::level::Level;
+use flatbake_core::level::palette::Palette;
+use flatbake_core::output::layers;
+use flatbake_core::output::read_lightmap_exr;
+use flatbake_core::quality::Quality;
 
 const BIN: &str = env!("CARGO_BIN_EXE_flatbake");
 
@@ -194,7 +190,7 @@ fn bake_layers_writes_files_that_add_up() {
     )
     .expect("manifest parses");
     assert_eq!(manifest.groups.len(), 3);
-    let report: flatbake::report::Report =
+    let report: flatbake_core::bake::report::Report =
         serde_json::from_slice(&std::fs::read(out.join("room.report.json")).expect("report"))
             .expect("report parses");
     for f in [
@@ -306,7 +302,7 @@ fn relight_command_equals_bake_command() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(relit.join("room.lightmap.png").is_file());
-    let report: flatbake::report::Report =
+    let report: flatbake_core::bake::report::Report =
         serde_json::from_slice(&std::fs::read(relit.join("room.report.json")).expect("report"))
             .expect("report parses");
     assert_eq!(report.solver, "relight");
@@ -460,113 +456,6 @@ fn unchanged_batch_skips_and_force_or_a_palette_change_bakes() {
     .expect("write palette");
     let touched = bake(&[]);
     assert!(touched.contains("1 up to date"), "{touched}");
-}
-
-/// Waits up to 20 s for an event that `want` accepts, passing over others.
-fn wait_for(
-    rx: &mpsc::Receiver<WatchEvent>,
-    what: &str,
-    want: impl Fn(&WatchEvent) -> bool,
-) -> WatchEvent {
-    let deadline = std::time::Instant::now() + Duration::from_secs(20);
-    loop {
-        let left = deadline.saturating_duration_since(std::time::Instant::now());
-        match rx.recv_timeout(left) {
-            Ok(ev) if want(&ev) => return ev,
-            Ok(_) => continue,
-            Err(_) => panic!("no {what} within 20 s"),
-        }
-    }
-}
-
-#[test]
-fn watch_bakes_after_a_save_and_survives_a_broken_level() {
-    let dir = tempfile::tempdir().expect("tempdir");
-    let levels = dir.path().join("levels");
-    std::fs::create_dir(&levels).expect("mkdir");
-    let png = write_level(&levels, "room", &default_palette());
-    let out = dir.path().join("out");
-    let opts = WatchOptions {
-        dir: levels.clone(),
-        batch: BatchOptions {
-            out_dir: out.clone(),
-            quality: Quality::Draft,
-            ..BatchOptions::default()
-        },
-        debounce: Duration::from_millis(100),
-    };
-    let stop = AtomicBool::new(false);
-    let (tx, rx) = mpsc::channel();
-    let is_room = |p: &Path| p.file_name() == png.file_name();
-    std::thread::scope(|scope| {
-        let handle = scope.spawn(|| watch::run(&opts, &stop, &mut |ev| drop(tx.send(ev))));
-        let first = wait_for(&rx, "first bake", |e| matches!(e, WatchEvent::Level(_)));
-        assert!(
-            matches!(&first, WatchEvent::Level(LevelOutcome::Baked { path, .. }) if is_room(path)),
-            "{first:?}"
-        );
-        wait_for(&rx, "watching", |e| {
-            matches!(e, WatchEvent::Watching { .. })
-        });
-        let before = std::fs::read(out.join("room.lightmap.png")).expect("baked");
-
-        // A broken palette: the level fails, the watcher goes on.
-        std::fs::write(levels.join("room.palette.toml"), "[[wall]\ncolor = ").expect("write");
-        let failed = wait_for(&rx, "failed bake", |e| {
-            matches!(e, WatchEvent::Level(LevelOutcome::Failed { .. }))
-        });
-        let WatchEvent::Level(LevelOutcome::Failed { error, .. }) = failed else {
-            unreachable!()
-        };
-        assert!(error.contains("room.palette.toml"), "{error}");
-
-        // Fixed with brighter light: baked again, and the output changes.
-        std::fs::write(
-            levels.join("room.palette.toml"),
-            palette_text([8.0; 3], TORCH_E, [0.0; 3], None),
-        )
-        .expect("write");
-        wait_for(
-            &rx,
-            "bake after the fix",
-            |e| matches!(e, WatchEvent::Level(LevelOutcome::Baked { path, .. }) if is_room(path)),
-        );
-        let after = std::fs::read(out.join("room.lightmap.png")).expect("baked");
-        assert_ne!(before, after, "the new palette shows in the lightmap");
-
-        // A new level painted into the folder is baked too.
-        level_pixels()
-            .save(levels.join("second.png"))
-            .expect("write");
-        wait_for(&rx, "bake of a new level", |e| {
-            matches!(e, WatchEvent::Level(LevelOutcome::Baked { path, .. })
-                if path.file_name().is_some_and(|n| n == "second.png"))
-        });
-
-        stop.store(true, Ordering::Relaxed);
-        let r = handle.join().expect("watch thread");
-        assert!(r.is_ok(), "{r:?}");
-    });
-}
-
-#[test]
-fn watch_maps_files_to_levels() {
-    let dir = tempfile::tempdir().expect("tempdir");
-    let a = write_level(dir.path(), "a", &default_palette());
-    let b = write_level(dir.path(), "b", &default_palette());
-    std::fs::write(dir.path().join("a.lightmap.png"), b"not a level").expect("write");
-    let d = dir.path();
-    assert_eq!(watch::affected_levels(d, &d.join("a.png")), vec![a.clone()]);
-    assert_eq!(
-        watch::affected_levels(d, &d.join("b.palette.toml")),
-        vec![b.clone()]
-    );
-    assert_eq!(
-        watch::affected_levels(d, &d.join("palette.toml")),
-        vec![a, b]
-    );
-    assert!(watch::affected_levels(d, &d.join("a.lightmap.png")).is_empty());
-    assert!(watch::affected_levels(d, &d.join(".flatbake-x.tmp")).is_empty());
 }
 
 /// Polls up to 20 s for `f` to hold.

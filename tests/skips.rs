@@ -6,10 +6,10 @@
 mod common;
 use common::*;
 
-use flatbake::bake::{Baked, Settings, bake};
-use flatbake::level::{Cell, Level};
-use flatbake::material::Material;
-use flatbake::quality::Quality;
+use flatbake_core::bake::{Baked, Settings, bake};
+use flatbake_core::level::material::Material;
+use flatbake_core::level::{Cell, Level};
+use flatbake_core::quality::Quality;
 
 fn run(level: &Level, q: Quality, falloff: Option<f64>, exhaustive: bool) -> Baked {
     let mut s = Settings::new(q);

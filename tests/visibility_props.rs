@@ -4,9 +4,9 @@
 mod common;
 use common::*;
 
-use flatbake::geometry::{Edge, trace};
-use flatbake::level::Level;
-use flatbake::visibility::{Blocks, Rect, Span, Sweeper, View, diamond};
+use flatbake_core::geometry::{Edge, trace};
+use flatbake_core::level::Level;
+use flatbake_core::visibility::{Blocks, Rect, Span, Sweeper, View, diamond};
 use proptest::prelude::*;
 
 fn level_strategy() -> impl Strategy<Value = Level> {
@@ -190,7 +190,7 @@ fn same_as_full_sweep(l: &Level) -> Result<(), TestCaseError> {
 
 /// Every free pixel of `l` and its centre.
 fn free_pixel_centres(
-    g: &flatbake::geometry::Geometry,
+    g: &flatbake_core::geometry::Geometry,
     l: &Level,
 ) -> (Vec<[i32; 2]>, Vec<[f64; 2]>) {
     let mut pixels = Vec::new();
@@ -232,7 +232,7 @@ fn obstacle_strategy() -> impl Strategy<Value = Level> {
 /// `pos`, against a sweep over every edge; `view` and `comp` per point.
 /// Both sides are compared after `kept` (all spans, or [`wide`] ones).
 fn culled_same_as_all(
-    g: &flatbake::geometry::Geometry,
+    g: &flatbake_core::geometry::Geometry,
     pos: &[[f64; 2]],
     pixels: &[[i32; 2]],
     view: &(dyn Fn(usize) -> View + Sync),
@@ -242,12 +242,12 @@ fn culled_same_as_all(
     let all: Vec<u32> = (0..g.edges.len() as u32).collect();
     let got: Vec<std::sync::Mutex<Vec<Span>>> =
         (0..pos.len()).map(|_| Default::default()).collect();
-    flatbake::transport::for_each_visibility(
+    flatbake_core::transport::for_each_visibility(
         g,
         pos,
         pixels,
         view,
-        &flatbake::kernel::Reach::unlimited(g.edges.len()),
+        &flatbake_core::transport::kernel::Reach::unlimited(g.edges.len()),
         None,
         &|i, spans: &[Span]| {
             *got[i].lock().unwrap() = spans.to_vec();
@@ -309,8 +309,8 @@ proptest! {
         (ex, ey, el, vertical) in (0i32..30, 0i32..30, 1i32..12, proptest::bool::ANY),
         centres in proptest::bool::ANY,
     ) {
-        use flatbake::geometry::Normal;
-        use flatbake::visibility::{Rect, Zone, box_hides};
+        use flatbake_core::geometry::Normal;
+        use flatbake_core::visibility::{Rect, Zone, box_hides};
         let r = Rect { x0: zx, y0: zy, x1: zx + zw, y1: zy + zh };
         let b = Rect { x0: bx, y0: by, x1: bx + bw, y1: by + bh };
         let (a, e_end, normal) = if vertical {
@@ -368,7 +368,7 @@ proptest! {
 /// hides it, since the block is thicker than the room is tall).
 #[test]
 fn a_box_between_a_region_and_an_edge_culls_it() {
-    use flatbake::visibility::{LeafRegions, TileTree};
+    use flatbake_core::visibility::{LeafRegions, TileTree};
     // A block at x 10..20, y 10..20; a one-pixel post at (26, 24..26).
     // From the leaf 0..8 x 0..8, segments to the post's left face enter
     // the block through its top face or its left face: no one straight run
@@ -389,7 +389,7 @@ fn a_box_between_a_region_and_an_edge_culls_it() {
     let post = g
         .edges
         .iter()
-        .position(|e| e.line() == 26.0 && e.normal == flatbake::geometry::Normal::Left)
+        .position(|e| e.line() == 26.0 && e.normal == flatbake_core::geometry::Normal::Left)
         .expect("the post's left face") as u32;
     let inside = |r: &Rect| r.x0 <= 3 && 3 < r.x1 && r.y0 <= 3 && 3 < r.y1;
     for centres in [true, false] {

@@ -10,8 +10,8 @@ use libfuzzer_sys::fuzz_target;
 #[path = "common.rs"]
 mod common;
 
-use flatbake::level::{Cell, Level};
-use flatbake::material::{Material, MaterialKind};
+use flatbake_core::level::{Cell, Level};
+use flatbake_core::level::material::{Material, MaterialKind};
 
 /// Values that stress the solver: 0, 1 and nearly 1 reflectance, tiny and huge emission.
 const RHO: [f64; 8] = [0.0, 0.25, 0.5, 0.9, 0.98, 0.999, 0.9999, 1.0];

@@ -1,20 +1,20 @@
 //! Checks shared by the fuzz targets: what must hold for any baked level.
 
-use flatbake::bake::{BakeError, Settings, bake};
-use flatbake::level::Level;
-use flatbake::quality::Quality;
+use flatbake_core::bake::{BakeError, Settings, bake};
+use flatbake_core::level::Level;
+use flatbake_core::quality::Quality;
 
 /// Traces and bakes `level` (draft quality) and panics on anything that
 /// must never happen: NaN, negative light, energy that does not balance.
 pub fn bake_and_check(level: &Level, falloff: Option<f64>, paper: bool) {
-    let g = flatbake::geometry::trace(level);
+    let g = flatbake_core::geometry::trace(level);
     for e in &g.edges {
         assert!(e.len() > 0.0, "empty edge {e:?}");
     }
     let mut s = Settings::new(Quality::Draft);
     s.falloff = falloff;
     if paper {
-        s.kernel = flatbake::gather::Kernel::Paper;
+        s.kernel = flatbake_core::gather::Kernel::Paper;
     }
     let baked = match bake(level, &s, &|_| {}) {
         Ok(b) => b,

@@ -7,8 +7,8 @@ use libfuzzer_sys::fuzz_target;
 #[path = "common.rs"]
 mod common;
 
-use flatbake::level::{LoadLimits, load_level};
-use flatbake::palette::Palette;
+use flatbake_core::level::{LoadLimits, load_level};
+use flatbake_core::level::palette::Palette;
 
 fuzz_target!(|data: &[u8]| {
     let (pal_bytes, img) = match data.iter().position(|&b| b == 0) {

@@ -1,8 +1,8 @@
 //! Helpers shared by the integration tests: levels from ASCII art.
 #![allow(dead_code)]
 
-use flatbake::level::{Cell, Level};
-use flatbake::material::{Material, MaterialKind};
+use flatbake_core::level::material::{Material, MaterialKind};
+use flatbake_core::level::{Cell, Level};
 
 /// A wall material.
 pub fn wall(r: f64) -> Material {

@@ -10,6 +10,9 @@
 //! warning per palette colour, or snapped to it when the palette sets
 //! `[bake] tolerance`.
 
+pub mod material;
+pub mod palette;
+
 use std::collections::{BTreeMap, HashMap};
 use std::fs::File;
 use std::hash::{BuildHasherDefault, Hasher};
@@ -18,8 +21,8 @@ use std::path::Path;
 
 use image::{ImageError, ImageFormat, ImageReader, RgbaImage};
 
-use crate::material::{Material, MaterialKind, srgb_to_linear};
-use crate::palette::{ColorClass, Palette, PaletteOrigin};
+use crate::level::material::{Material, MaterialKind, srgb_to_linear};
+use crate::level::palette::{ColorClass, Palette, PaletteOrigin};
 
 /// What one pixel of the level is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -80,7 +83,7 @@ pub enum LevelError {
     #[error("{path}: {message}")]
     Image { path: String, message: String },
     #[error(transparent)]
-    Palette(#[from] crate::palette::PaletteError),
+    Palette(#[from] crate::level::palette::PaletteError),
 }
 
 /// Pixels whose largest per-channel difference from a wall or emitter colour
@@ -542,7 +545,7 @@ fn near_miss_warning(palette: &Palette, level: &str, solid: usize, m: &NearMisse
          to snap them to the nearest palette colour",
         plural(m.pixels, "pixel"),
         plural(m.colors, "colour"),
-        crate::material::hex_color(c),
+        crate::level::material::hex_color(c),
         m.min.0,
         m.max.0,
         m.min.1,

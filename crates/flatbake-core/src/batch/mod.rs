@@ -5,18 +5,20 @@
 //! [`LevelOutcome`], and the caller turns the worst outcome into the exit
 //! status.
 
+pub mod stamp;
+
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use rayon::prelude::*;
 
+use crate::bake::report::Report;
 use crate::bake::{self, GatherMethod, Settings};
 use crate::gather::Kernel;
+use crate::level::palette::Palette;
 use crate::level::{self, LoadLimits};
 use crate::output::{self, Depth, OutputOptions};
-use crate::palette::Palette;
 use crate::quality::Quality;
-use crate::report::Report;
 
 /// Options for a batch, as given on the command line (palette `[bake]`
 /// settings fill in what is `None` here, per level).
@@ -163,7 +165,7 @@ pub fn run(paths: &[PathBuf], opts: &BatchOptions, observer: &dyn Observer) -> V
         .par_iter()
         .zip(&clashes)
         .map(|(path, clash)| {
-            if clash.is_none() && !opts.force && crate::stamp::up_to_date(path, opts) {
+            if clash.is_none() && !opts.force && crate::batch::stamp::up_to_date(path, opts) {
                 let outcome = LevelOutcome::UpToDate { path: path.clone() };
                 observer.level_done(&outcome);
                 return outcome;
@@ -235,7 +237,7 @@ pub fn bake_one(
         Palette::resolve_for_level(path, opts.palette.as_deref()).map_err(|e| e.to_string())?;
     let level = level::load_level(path, &palette, opts.limits).map_err(|e| e.to_string())?;
     // What the stamp and cache record; hashed right after loading.
-    let inputs = crate::stamp::inputs(path, opts)?;
+    let inputs = crate::batch::stamp::inputs(path, opts)?;
     let load = t.elapsed().as_secs_f64();
 
     let mut settings = Settings::new(opts.quality);
@@ -266,15 +268,21 @@ pub fn bake_one(
             .map_err(|e| e.to_string())?;
     if let Some(resp) = baked.responses {
         if opts.layers {
-            let emission = crate::layers::palette_emission(&level, &resp);
+            let emission = crate::output::layers::palette_emission(&level, &resp);
             written.extend(
-                crate::layers::write_layers(&opts.out_dir, &level, &resp, &emission, &out_opts)
-                    .map_err(|e| e.to_string())?,
+                crate::output::layers::write_layers(
+                    &opts.out_dir,
+                    &level,
+                    &resp,
+                    &emission,
+                    &out_opts,
+                )
+                .map_err(|e| e.to_string())?,
             );
         }
         if opts.cache {
             let cache_path = opts.out_dir.join(format!("{}.flatbake", level.name));
-            let cache = crate::cache::Cache::new(
+            let cache = crate::output::cache::Cache::new(
                 &level,
                 resp,
                 &report,
@@ -297,7 +305,7 @@ pub fn bake_one(
     if opts.layers || opts.cache {
         list_extra_outputs(&opts.out_dir, &level.name, &report.outputs)?;
     }
-    crate::stamp::write(path, opts, &inputs, &report.outputs)?;
+    crate::batch::stamp::write(path, opts, &inputs, &report.outputs)?;
     Ok(report)
 }
 

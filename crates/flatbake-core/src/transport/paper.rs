@@ -16,7 +16,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use crate::geometry::Geometry;
-use crate::kernel::Falloff;
+use crate::transport::kernel::Falloff;
 use crate::transport::{Patches, for_each_visibility};
 use crate::visibility::{View, diamond};
 
@@ -60,7 +60,7 @@ pub fn form_factors(
     let visible: Vec<std::sync::Mutex<Vec<u32>>> =
         (0..n * SAMPLES).map(|_| Default::default()).collect();
     let view = |i: usize| View::Half(edges[patches.edge[i / SAMPLES] as usize].normal);
-    let unlimited = crate::kernel::Reach::unlimited(edges.len());
+    let unlimited = crate::transport::kernel::Reach::unlimited(edges.len());
     for_each_visibility(
         g,
         &pos,

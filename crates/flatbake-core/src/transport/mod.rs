@@ -4,7 +4,7 @@
 //! `i` of F is the mean, over Gauss-Legendre points `x` on patch `i`, of the
 //! exact point-to-patch factors `K(x, j) = 1/2 * integral of cos(theta_x) w d psi`
 //! over the part of patch `j` that `x` sees ([`crate::visibility`] finds the
-//! visible parts, [`crate::kernel`] integrates them in closed form). Because
+//! visible parts, [`crate::transport::kernel`] integrates them in closed form). Because
 //! every point's factors integrate exactly over the directions it sees, a row
 //! of F sums to exactly the visible fraction of the half-plane (1 in a closed
 //! room) whatever the quadrature.
@@ -18,6 +18,10 @@
 //! or conjugate gradients, and energy balances exactly in the discrete system.
 //! `D_i` differs from the true length `L_i` only by quadrature error.
 
+pub mod kernel;
+pub mod paper;
+pub mod solve;
+
 use std::cell::RefCell;
 use std::ops::Range;
 
@@ -25,8 +29,8 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::geometry::{Edge, Geometry, Normal};
-use crate::kernel::Reach;
-use crate::kernel::{FactorLine, Falloff, gauss_legendre};
+use crate::transport::kernel::Reach;
+use crate::transport::kernel::{FactorLine, Falloff, gauss_legendre};
 use crate::visibility::{Blocks, Reachable, Rect, Span, Sweeper, TileTree, View, Wanted};
 
 /// Patches: every edge cut into equal pieces.

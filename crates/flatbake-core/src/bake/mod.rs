@@ -4,20 +4,22 @@
 //! that changes the answer; each thing it leaves out is recorded in the
 //! report's `skipped` list with the reason (see [`plan_channels`]).
 
+pub mod report;
+
 use std::time::Instant;
 
+use crate::bake::report::{Counts, Energy, Report, Skip, Timings};
 use crate::gather::{self, Kernel, Radiosity};
 use crate::geometry::{self, Geometry};
-use crate::kernel::{Falloff, Reach};
 use crate::level::{Cell, Level};
 use crate::output::Lightmap;
 use crate::quality::{Knobs, Quality};
-use crate::report::{Counts, Energy, Report, Skip, Timings};
-use crate::solve::{self, SolveError, SolveSettings};
+use crate::transport::kernel::{Falloff, Reach};
+use crate::transport::solve::{self, SolveError, SolveSettings};
 use crate::transport::{self, FormFactors, Patches};
 
 /// How the floor gather is done.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum GatherMethod {
     /// Exact visible angles, tiled and parallel (the default).
     Fast,
@@ -154,7 +156,7 @@ impl ResponsePlan {
             .materials
             .iter()
             .enumerate()
-            .filter(|(i, m)| used[*i] && m.kind == crate::material::MaterialKind::Emitter)
+            .filter(|(i, m)| used[*i] && m.kind == crate::level::material::MaterialKind::Emitter)
             .map(|(i, _)| i)
             .collect();
         let mut rho_class_of = [0; 3];
@@ -349,7 +351,7 @@ pub fn bake(
     // so that a relight may switch it on.
     let resp_plan = settings.responses.then(|| ResponsePlan::new(level, &used));
     let emitter_patch: Vec<bool> = (0..np)
-        .map(|p| mat(p).kind == crate::material::MaterialKind::Emitter)
+        .map(|p| mat(p).kind == crate::level::material::MaterialKind::Emitter)
         .collect();
     let mut resp_bounce = resp_plan.as_ref().is_some_and(|rp| {
         !rp.emitters.is_empty()
@@ -402,7 +404,7 @@ pub fn bake(
                 lit
             }
             Kernel::Paper => {
-                let rows = crate::paper::form_factors(&geometry, &patches, falloff);
+                let rows = crate::transport::paper::form_factors(&geometry, &patches, falloff);
                 let lit = sees_light(&|i| rows[i].iter().map(|&(j, f)| (j as usize, f)).collect());
                 paper_rows = Some(rows);
                 lit
@@ -435,7 +437,8 @@ pub fn bake(
     // One channel's solve for emission `e`: (B, residual, solver, rows rescaled).
     let solve_one = |c: usize, e: &[f64]| -> Result<(Vec<f64>, f64, String, usize), BakeError> {
         if let Some(rows) = &paper_rows {
-            let (b, rescaled) = crate::paper::solve(rows, &rho[c], e, settings.knobs.tolerance);
+            let (b, rescaled) =
+                crate::transport::paper::solve(rows, &rho[c], e, settings.knobs.tolerance);
             return Ok((b, 0.0, "paper".into(), rescaled));
         }
         let ff = form_factors
@@ -470,7 +473,7 @@ pub fn bake(
             warnings.push(format!(
                 "paper kernel, {} channel: {rescaled} rows of rho F summed to 1 or more and were rescaled (F normalised per row, rho F capped at {})",
                 CHANNEL[c],
-                crate::paper::MAX_ROW
+                crate::transport::paper::MAX_ROW
             ));
         }
         class_b.push(b);

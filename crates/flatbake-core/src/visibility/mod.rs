@@ -32,8 +32,10 @@
 //! for form factors its whole pixels ([`Zone`]). Regions whose list stays
 //! long use the walk instead of the sweep.
 
+pub mod marks;
+
 use crate::geometry::{Edge, Geometry, Normal, Run};
-use crate::marks::Marks;
+use crate::visibility::marks::Marks;
 
 /// Which directions a query point looks into.
 #[derive(Clone, Copy, Debug, PartialEq)]

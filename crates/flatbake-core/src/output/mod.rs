@@ -10,6 +10,9 @@
 //! Output bytes depend only on the inputs: no timestamps, no thread-order
 //! effects (which is why the EXR writer is our own, see [`encode_exr_rgb32f`]).
 
+pub mod cache;
+pub mod layers;
+
 use std::io::{self, ErrorKind, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -17,9 +20,9 @@ use std::time::Instant;
 use image::codecs::png::PngEncoder;
 use image::{DynamicImage, ImageBuffer, Rgba, RgbaImage};
 
+use crate::bake::report::Report;
+use crate::level::material::linear_to_srgb;
 use crate::level::{Cell, Level};
-use crate::material::linear_to_srgb;
-use crate::report::Report;
 
 /// Linear light per pixel, ready to encode.
 #[derive(Clone, Debug)]

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::batch::BatchOptions;
-use crate::palette::Palette;
+use crate::level::palette::Palette;
 
 /// What one level's outputs were made from.
 #[derive(Clone, Debug, PartialEq, Eq)]

@@ -12,12 +12,12 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use crate::bake::report::Timings;
 use crate::bake::{self, Settings};
+use crate::level::palette::Palette;
 use crate::level::{self, Cell, Level, LoadLimits};
 use crate::output::write_atomic;
-use crate::palette::Palette;
 use crate::quality::{Knobs, Quality};
-use crate::report::Timings;
 
 /// Largest relative RMS change allowed between `reference` and its refinement.
 pub const REFERENCE_TOLERANCE: f64 = 5e-4;
@@ -37,6 +37,9 @@ pub struct Row {
     /// Largest absolute error over floor pixels and channels.
     pub max_err: f64,
 }
+
+/// One level's sweep: its name, a row per setting, and the reference check.
+pub type LevelRows = (String, Vec<Row>, f64);
 
 /// The settings a sweep bakes, from cheapest to `reference` (last).
 pub fn settings_ladder() -> Vec<(String, Knobs)> {
@@ -149,13 +152,9 @@ fn preset_of(name: &str) -> Option<Quality> {
     Quality::ALL.into_iter().find(|q| q.name() == name)
 }
 
-/// Runs a sweep over `levels` and writes the three outputs into `dir`.
-pub fn run(
-    levels: &[PathBuf],
-    dir: &Path,
-    progress: &dyn Fn(&str),
-) -> Result<Vec<(String, Vec<Row>, f64)>, String> {
-    crate::output::ensure_output_dir(dir).map_err(|e| e.to_string())?;
+/// Sweeps every level of `levels` (files or folders); returns the levels
+/// swept and the errors of those that could not be.
+pub fn run(levels: &[PathBuf], progress: &dyn Fn(&str)) -> (Vec<LevelRows>, Vec<String>) {
     let mut all = Vec::new();
     let mut failures = Vec::new();
     for path in crate::batch::collect_levels(levels) {
@@ -164,22 +163,21 @@ pub fn run(
             Err(e) => failures.push(e),
         }
     }
-    let write = |name: &str, bytes: &[u8]| {
-        write_atomic(&dir.join(name), bytes)
-            .map_err(|e| format!("cannot write {}: {e}", dir.join(name).display()))
-    };
-    write("accuracy.csv", csv(&all).as_bytes())?;
-    write("accuracy.md", markdown(&all).as_bytes())?;
-    write("accuracy.png", &plot(&all)?)?;
-    if failures.is_empty() {
-        Ok(all)
-    } else {
-        Err(failures.join("\n"))
+    (all, failures)
+}
+
+/// Writes `accuracy.csv` and `accuracy.md` into `dir` (created if missing).
+pub fn write_tables(dir: &Path, all: &[LevelRows]) -> Result<(), String> {
+    crate::output::ensure_output_dir(dir).map_err(|e| e.to_string())?;
+    for (name, text) in [("accuracy.csv", csv(all)), ("accuracy.md", markdown(all))] {
+        write_atomic(&dir.join(name), text.as_bytes())
+            .map_err(|e| format!("cannot write {}: {e}", dir.join(name).display()))?;
     }
+    Ok(())
 }
 
 /// The rows as CSV (`level,quality,seconds,rel_rmse,max_err` first).
-pub fn csv(all: &[(String, Vec<Row>, f64)]) -> String {
+pub fn csv(all: &[LevelRows]) -> String {
     let mut s = String::from(
         "level,quality,seconds,rel_rmse,max_err,patch_len,quad,patches,geometry_s,form_factors_s,solve_s,gather_s\n",
     );
@@ -207,7 +205,7 @@ pub fn csv(all: &[(String, Vec<Row>, f64)]) -> String {
 }
 
 /// The rows as Markdown tables, one per level.
-pub fn markdown(all: &[(String, Vec<Row>, f64)]) -> String {
+pub fn markdown(all: &[LevelRows]) -> String {
     let mut s = String::from(
         "# The price of accuracy\n\nError against the `reference` preset over floor pixels (all channels); time is the whole bake of the level on this machine.\n\n",
     );
@@ -270,102 +268,4 @@ pub fn markdown(all: &[(String, Vec<Row>, f64)]) -> String {
         );
     }
     s
-}
-
-/// Error against time, log-log, one line per level, presets labelled.
-pub fn plot(all: &[(String, Vec<Row>, f64)]) -> Result<Vec<u8>, String> {
-    use plotters::prelude::*;
-    static FONT: &[u8] = include_bytes!("../assets/fonts/DejaVuSansMono.ttf");
-    // Registering twice is harmless; the first registration wins.
-    let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, FONT);
-    let (w, h) = (960u32, 640u32);
-    let mut buf = vec![0u8; (w * h * 3) as usize];
-    {
-        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let pts: Vec<(f64, f64)> = all
-            .iter()
-            .flat_map(|(_, rows, _)| rows.iter())
-            .filter(|r| r.rel_rmse > 0.0)
-            .map(|r| (r.seconds, r.rel_rmse))
-            .collect();
-        let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, 0.0f64, f64::INFINITY, 0.0f64);
-        for &(x, y) in &pts {
-            x0 = x0.min(x);
-            x1 = x1.max(x);
-            y0 = y0.min(y);
-            y1 = y1.max(y);
-        }
-        if pts.is_empty() {
-            (x0, x1, y0, y1) = (1e-3, 1.0, 1e-4, 1e-1);
-        }
-        let mut chart = ChartBuilder::on(&root)
-            .caption(
-                "Error against time (each level's reference preset is the yardstick)",
-                ("sans-serif", 20),
-            )
-            .margin(16)
-            .x_label_area_size(44)
-            .y_label_area_size(70)
-            .build_cartesian_2d(
-                (x0 / 1.5..x1 * 1.5).log_scale(),
-                (y0 / 2.0..y1 * 2.0).log_scale(),
-            )
-            .map_err(|e| e.to_string())?;
-        chart
-            .configure_mesh()
-            .x_desc("seconds (whole bake)")
-            .y_desc("relative RMS error")
-            .y_label_formatter(&|v| format!("{:.1e}", v))
-            .x_label_formatter(&|v| format!("{:.2}", v))
-            .label_style(("sans-serif", 14))
-            .draw()
-            .map_err(|e| e.to_string())?;
-        for (i, (level, rows, _)) in all.iter().enumerate() {
-            let color = Palette99::pick(i).to_rgba();
-            let line: Vec<(f64, f64)> = rows
-                .iter()
-                .filter(|r| r.rel_rmse > 0.0)
-                .map(|r| (r.seconds, r.rel_rmse))
-                .collect();
-            chart
-                .draw_series(LineSeries::new(line.clone(), color.stroke_width(2)))
-                .map_err(|e| e.to_string())?
-                .label(level.clone())
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
-                });
-            chart
-                .draw_series(line.iter().map(|&p| Circle::new(p, 4, color.filled())))
-                .map_err(|e| e.to_string())?;
-            for r in rows
-                .iter()
-                .filter(|r| r.rel_rmse > 0.0 && r.quality != "step")
-            {
-                chart
-                    .draw_series(std::iter::once(Text::new(
-                        r.quality.clone(),
-                        (r.seconds, r.rel_rmse),
-                        ("sans-serif", 13).into_font().color(&BLACK),
-                    )))
-                    .map_err(|e| e.to_string())?;
-            }
-        }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 14))
-            .draw()
-            .map_err(|e| e.to_string())?;
-        root.present().map_err(|e| e.to_string())?;
-    }
-    let img = image::RgbImage::from_raw(w, h, buf).ok_or("plot buffer has the wrong size")?;
-    let mut bytes = Vec::new();
-    img.write_to(
-        &mut std::io::Cursor::new(&mut bytes),
-        image::ImageFormat::Png,
-    )
-    .map_err(|e| e.to_string())?;
-    Ok(bytes)
 }

@@ -2112,8 +2112,8 @@ mod tests {
 
     #[test]
     fn the_real_parser_accepts_every_palette_and_sees_no_near_misses() {
-        use crate::level::Level;
-        use crate::palette::Palette;
+        use flatbake_core::level::Level;
+        use flatbake_core::level::palette::Palette;
         let randoms = (0..300).map(random_small);
         for p in all().into_iter().chain(randoms) {
             let path = Path::new("synth").join(format!("{}.palette.toml", p.name));

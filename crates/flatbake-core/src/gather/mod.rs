@@ -3,7 +3,7 @@
 //!
 //! The fast gather finds exactly which stretches of which edges a pixel
 //! centre sees ([`crate::visibility`]) and integrates them in closed form
-//! ([`crate::kernel`]). An edge's emission is uniform along it, so it is one
+//! ([`crate::transport::kernel`]). An edge's emission is uniform along it, so it is one
 //! term per visible stretch: direct light is exact at every quality. Only the
 //! reflected part `B - E`, which lives on patches, is walked patch by patch,
 //! and only on edges that reflect anything.
@@ -15,12 +15,12 @@
 use std::f64::consts::TAU;
 
 use crate::geometry::{Edge, Geometry};
-use crate::kernel::Reach;
-use crate::kernel::{Falloff, GatherLine, GatherPoints};
 use crate::level::{Cell, Level};
-use crate::marks::Marks;
+use crate::transport::kernel::Reach;
+use crate::transport::kernel::{Falloff, GatherLine, GatherPoints};
 use crate::transport::{Patches, for_each_visibility};
 use crate::transport::{VisitStats, wanted_reach};
+use crate::visibility::marks::Marks;
 use crate::visibility::{Span, TileTree, View};
 
 /// Radiosity in a form the gather can use: `components` values per edge

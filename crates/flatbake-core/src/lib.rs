@@ -2,38 +2,25 @@
 //! painted as bitmaps.
 //!
 //! The pipeline, one module per stage, each with a resolved boundary:
-//! [`palette`] + [`level`] turn an image into a resolved [`level::Level`];
+//! [`level`] turns an image and its palette into a resolved [`level::Level`];
 //! [`geometry`] traces its walls into edges; [`transport`] cuts edges into
 //! patches and computes the form factors with exact visibility
-//! ([`visibility`]) and closed-form integrals ([`kernel`]); [`solve`] finds
-//! the radiosity per channel; [`gather`] lights every floor pixel; [`output`]
-//! writes the results. [`bake`] runs the stages for one level and decides
-//! what a scene does not need.
+//! ([`visibility`]) and closed-form integrals ([`transport::kernel`]), and
+//! solves the radiosity per channel ([`transport::solve`]); [`gather`] lights
+//! every floor pixel; [`output`] writes the results. [`bake`] runs the stages
+//! for one level and decides what a scene does not need; [`batch`] bakes
+//! folders of levels incrementally.
 
 // Numeric kernels index several parallel arrays by channel or patch.
 #![allow(clippy::needless_range_loop)]
 
+pub mod accuracy;
 pub mod bake;
 pub mod batch;
-pub mod cache;
-pub mod cli;
 pub mod gather;
 pub mod geometry;
-pub mod kernel;
-pub mod layers;
-pub mod legend;
 pub mod level;
-pub mod marks;
-pub mod material;
 pub mod output;
-pub mod palette;
-pub mod paper;
 pub mod quality;
-pub mod report;
-pub mod solve;
-pub mod stamp;
-pub mod sweep;
-pub mod synth;
 pub mod transport;
 pub mod visibility;
-pub mod watch;

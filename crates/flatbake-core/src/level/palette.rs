@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 use toml::Spanned;
 use toml::de::{DeArray, DeTable, DeValue};
 
-use crate::material::{Material, MaterialKind, Rgb, hex_color};
+use crate::level::material::{Material, MaterialKind, Rgb, hex_color};
 
 /// Where a palette came from.
 #[derive(Clone, Debug, PartialEq)]

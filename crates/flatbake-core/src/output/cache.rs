@@ -21,10 +21,10 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 
 use crate::bake::Responses;
+use crate::bake::report::{Energy, Report, Skip, Timings};
+use crate::level::material::{Material, MaterialKind, hex_color};
 use crate::level::{Cell, Level};
-use crate::material::{Material, MaterialKind, hex_color};
 use crate::output::{self, Depth, Lightmap, OutputOptions};
-use crate::report::{Energy, Report, Skip, Timings};
 
 /// First bytes of every cache file.
 pub const MAGIC: &[u8; 16] = b"flatbake-cache\n\0";
@@ -241,7 +241,7 @@ pub fn parse_emission(s: &str) -> Result<([u8; 3], [f64; 3]), String> {
     let (c, v) = s.split_once('=').ok_or_else(|| {
         format!("--emission takes COLOR=R,G,B (like \"#fffadc=10,9,7\"), not {s:?}")
     })?;
-    let color = crate::palette::parse_hex(c.trim())
+    let color = crate::level::palette::parse_hex(c.trim())
         .ok_or_else(|| format!("--emission: {c:?} is not a colour like #fffadc"))?;
     let nums: Vec<f64> = v
         .split(',')
@@ -339,7 +339,7 @@ pub fn relight(cache_path: &Path, opts: &RelightOptions) -> Result<Report, Strin
         .map_err(|e| e.to_string())?;
     if opts.layers {
         written.extend(
-            crate::layers::write_layers(
+            crate::output::layers::write_layers(
                 &opts.out_dir,
                 &level,
                 &cache.responses,

@@ -1,0 +1,1 @@
+//! Nothing here: the benchmarks are `bake.rs` (`cargo bench -p flatbake-benches`).
