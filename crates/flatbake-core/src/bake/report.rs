@@ -1,5 +1,6 @@
-//! The per-level report (`NAME.report.json`, SPEC section 5): what happened,
-//! for people and scripts.
+//! The per-level report (`NAME.report.json`): what happened, for people and
+//! scripts — sizes, stage times, solves, the energy balance, what was
+//! skipped and why, warnings and the files written.
 
 use serde::{Deserialize, Serialize};
 
@@ -79,6 +80,39 @@ pub struct Report {
 }
 
 impl Report {
+    /// The report of a bake, assembled from what its stages returned.
+    pub fn new(
+        ctx: &super::Ctx,
+        counts: Counts,
+        timings: Timings,
+        solved: &super::Solved,
+        log: super::Log,
+    ) -> Report {
+        let (level, settings) = (ctx.level, ctx.settings);
+        Report {
+            level: level.name.clone(),
+            size: [level.width, level.height],
+            quality: settings.quality.name().into(),
+            kernel: match settings.kernel {
+                crate::gather::Kernel::Flatland => "flatland".into(),
+                crate::gather::Kernel::Paper => "paper".into(),
+            },
+            gather: settings.gather.name().into(),
+            falloff: settings.falloff,
+            bounces: settings.bounces,
+            counts,
+            timings,
+            solves: solved.solves,
+            residual: solved.residual,
+            solver: solved.solver.clone(),
+            energy: solved.energy.clone(),
+            skipped: log.skipped,
+            warnings: log.warnings,
+            outputs: vec![],
+            version: env!("CARGO_PKG_VERSION").into(),
+        }
+    }
+
     /// One-line human summary of what was simulated and what was skipped.
     pub fn summary(&self) -> String {
         let mut parts = vec![format!(

@@ -20,11 +20,12 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
+use crate::bake::Lightmap;
 use crate::bake::Responses;
 use crate::bake::report::{Energy, Report, Skip, Timings};
 use crate::level::material::{Material, MaterialKind, hex_color};
 use crate::level::{Cell, Level};
-use crate::output::{self, Depth, Lightmap, OutputOptions};
+use crate::output::{self, Depth, OutputOptions};
 
 /// First bytes of every cache file.
 pub const MAGIC: &[u8; 16] = b"flatbake-cache\n\0";

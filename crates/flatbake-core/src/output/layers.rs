@@ -10,9 +10,10 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use crate::bake::Lightmap;
 use crate::bake::Responses;
 use crate::level::Level;
-use crate::output::{self, Lightmap, OutputError, OutputKind, OutputOptions};
+use crate::output::{self, OutputError, OutputKind, OutputOptions};
 
 /// One light group: the emitters (positions in [`Responses::emitters`]) that
 /// switch together.

@@ -20,19 +20,10 @@ use std::time::Instant;
 use image::codecs::png::PngEncoder;
 use image::{DynamicImage, ImageBuffer, Rgba, RgbaImage};
 
+pub use crate::bake::Lightmap;
 use crate::bake::report::Report;
 use crate::level::material::linear_to_srgb;
 use crate::level::{Cell, Level};
-
-/// Linear light per pixel, ready to encode.
-#[derive(Clone, Debug)]
-pub struct Lightmap {
-    pub width: usize,
-    pub height: usize,
-    /// Row-major linear RGB: I(p) on floor pixels, the mean radiosity of the
-    /// exposed edges on solid pixels, zero on void pixels.
-    pub rgb: Vec<[f32; 3]>,
-}
 
 /// Bits per channel of the PNG outputs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]

@@ -1,0 +1,191 @@
+//! The last stage: the lightmap of the level, linear light per pixel — the
+//! gathered light on floor pixels, the mean radiosity of their exposed
+//! sides on solid pixels (emitters glow), 0 on void — and, for layers and
+//! caches, the per-emitter [`Responses`] it is the sum of.
+
+use super::radiosity::{Solved, TRACED_EMISSION};
+use super::responses::Responses;
+use super::{Ctx, Gathered, Log, Plan, Scene};
+use crate::geometry::Geometry;
+use crate::level::{Cell, Level};
+use crate::transport::Patches;
+
+/// Linear light per pixel, ready to encode.
+#[derive(Clone, Debug)]
+pub struct Lightmap {
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+    /// Row-major linear RGB: I(p) on floor pixels, the mean radiosity of the
+    /// exposed edges on solid pixels, zero on void pixels.
+    pub rgb: Vec<[f32; 3]>,
+}
+
+/// The lightmap, the per-emitter responses if planned, and the radiosity
+/// per channel per patch.
+pub struct Assembled {
+    /// The lightmap.
+    pub lightmap: Lightmap,
+    /// The per-emitter light, when the plan traced it.
+    pub responses: Option<Responses>,
+    /// Radiosity per channel (R, G, B) per patch; 0 for dark channels.
+    pub radiosity: [Vec<f64>; 3],
+}
+
+/// Puts the gathered light and the solid pixels' radiosity together.
+pub fn assemble(
+    ctx: &Ctx,
+    scene: &Scene,
+    plan: &Plan,
+    solved: &Solved,
+    gathered: &Gathered,
+) -> Assembled {
+    let level = ctx.level;
+    let (geometry, patches) = (&scene.geometry, &scene.patches);
+    let np = patches.len();
+    let kk = gathered.components;
+    let k_main = solved.class_b.len();
+    let mut rgb = vec![[0f32; 3]; level.width * level.height];
+    for (i, p) in gathered.reached.iter().enumerate() {
+        let px = &mut rgb[p[1] as usize * level.width + p[0] as usize];
+        for c in 0..3 {
+            if let Some(k) = plan.channels.class_of[c] {
+                px[c] = light_f32(gathered.values[i * kk + k]);
+            }
+        }
+    }
+    let responses = plan.responses.as_ref().map(|rp| {
+        let n = level.width * level.height;
+        let zeros = vec![0.0; np];
+        let images = solved
+            .responses
+            .iter()
+            .enumerate()
+            .map(|(j, r)| {
+                let mut img = vec![[0f32; 3]; n];
+                for (i, p) in gathered.reached.iter().enumerate() {
+                    img[p[1] as usize * level.width + p[0] as usize][0] =
+                        gathered.values[i * kk + k_main + j] as f32;
+                }
+                let one = [r.b.clone(), zeros.clone(), zeros.clone()];
+                solid_pixels(level, geometry, patches, &one, &mut img);
+                img.iter()
+                    .map(|v| (v[0] as f64 / TRACED_EMISSION) as f32)
+                    .collect()
+            })
+            .collect();
+        Responses {
+            width: level.width,
+            height: level.height,
+            emitters: rp.emitters.clone(),
+            rho_class_of: rp.rho_class_of,
+            rho_classes: rp.rho_reps.len(),
+            images,
+            traced_emission: TRACED_EMISSION,
+        }
+    });
+    // Solid pixels: mean radiosity of their exposed sides.
+    let radiosity: [Vec<f64>; 3] = std::array::from_fn(|c| {
+        plan.channels.class_of[c].map_or_else(|| vec![0.0; np], |k| solved.class_b[k].clone())
+    });
+    solid_pixels(level, geometry, patches, &radiosity, &mut rgb);
+    // With responses, the lightmap is their sum at the palette's emission, so
+    // that layers (and a relight with unchanged emission) add up to it
+    // exactly. It differs from the direct result only where the positivity
+    // limiter on patch slopes (`PointRows::slopes`) acts differently on one
+    // emitter's light than on the sum, a small fraction of a percent.
+    if let Some(r) = &responses {
+        let e: Vec<[f64; 3]> = r
+            .emitters
+            .iter()
+            .map(|&m| level.materials[m].emission)
+            .collect();
+        rgb = r.combine(&e);
+    }
+    Assembled {
+        lightmap: Lightmap {
+            width: level.width,
+            height: level.height,
+            rgb,
+        },
+        responses,
+        radiosity,
+    }
+}
+
+/// Never hands out NaN or negative light: clamps it to 0 with a warning
+/// (it would be a bug upstream).
+pub fn clamp(lightmap: &mut Lightmap, log: &mut Log) {
+    let bad = |v: &f32| !v.is_finite() || *v < 0.0;
+    if lightmap.rgb.iter().any(|p| p.iter().any(bad)) {
+        log.warn("non-finite or negative light was clamped to 0 (please report this level)");
+        for p in &mut lightmap.rgb {
+            for v in p.iter_mut() {
+                if bad(v) {
+                    *v = 0.0;
+                }
+            }
+        }
+    }
+}
+
+/// Light as stored in the lightmap: values beyond the f32 range saturate at
+/// the largest f32 instead of becoming infinite (which the final check would
+/// clamp to black); NaN stays NaN so that the check still catches it.
+fn light_f32(v: f64) -> f32 {
+    if v > f32::MAX as f64 {
+        f32::MAX
+    } else {
+        v as f32
+    }
+}
+
+/// Fills solid pixels with the mean radiosity of their exposed sides.
+fn solid_pixels(
+    level: &Level,
+    g: &Geometry,
+    patches: &Patches,
+    b: &[Vec<f64>; 3],
+    rgb: &mut [[f32; 3]],
+) {
+    let w = level.width;
+    let mut sum = vec![[0f64; 3]; level.width * level.height];
+    let mut count = vec![0u32; level.width * level.height];
+    for (ei, e) in g.edges.iter().enumerate() {
+        let (lo, hi) = e.extent();
+        let range = patches.of_edge(ei);
+        let step = patches.step[ei];
+        for u in lo as i32..hi as i32 {
+            let px = e.solid_pixel_at(u);
+            let i = px[1] as usize * w + px[0] as usize;
+            // Length-weighted mean of the patches covering [u, u + 1].
+            let (a, bnd) = (u as f64, u as f64 + 1.0);
+            let k0 = (((a - lo) / step).floor() as usize).min(range.len() - 1);
+            let mut v = [0f64; 3];
+            let mut k = k0;
+            while k < range.len() {
+                let (s0, s1) = (lo + k as f64 * step, lo + (k + 1) as f64 * step);
+                let ov = s1.min(bnd) - s0.max(a);
+                if ov > 0.0 {
+                    for c in 0..3 {
+                        v[c] += ov * b[c][range.start + k];
+                    }
+                }
+                if s1 >= bnd {
+                    break;
+                }
+                k += 1;
+            }
+            for c in 0..3 {
+                sum[i][c] += v[c];
+            }
+            count[i] += 1;
+        }
+    }
+    for (i, cell) in level.cells.iter().enumerate() {
+        if matches!(cell, Cell::Solid(_)) && count[i] > 0 {
+            rgb[i] = [0, 1, 2].map(|c| light_f32(sum[i][c] / count[i] as f64));
+        }
+    }
+}

@@ -1,0 +1,208 @@
+//! The second stage: what this scene calls for. It looks at the materials
+//! before anything is simulated and decides which channels need a solve,
+//! whether there is a bounce to solve at all, and which per-emitter
+//! responses to trace; every effect it leaves out goes into the report's
+//! `skipped` list with the reason.
+
+use super::{Ctx, Log, Scene};
+use crate::level::Level;
+use crate::level::material::MaterialKind;
+
+/// The names of the channels, for messages.
+pub const CHANNEL: [&str; 3] = ["red", "green", "blue"];
+
+/// What a bake computes, decided before simulating.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Plan {
+    /// Which channels are solved, shared or dark.
+    pub channels: ChannelPlan,
+    /// Solve the bounce of the bake's own channels (otherwise the radiosity
+    /// is the emission).
+    pub bounce: bool,
+    /// The per-emitter responses to trace, for layers and caches.
+    pub responses: Option<ResponsePlan>,
+    /// Solve the bounce of the responses.
+    pub response_bounce: bool,
+}
+
+impl Plan {
+    /// Plans a bake of `scene`; records what it skips, and warns about a
+    /// level with nothing to light or nothing that emits.
+    pub fn new(ctx: &Ctx, scene: &Scene, log: &mut Log) -> Plan {
+        let (level, settings) = (ctx.level, ctx.settings);
+        if scene.floor_pixels.is_empty() {
+            log.warn("the level has no floor pixels: nothing to light");
+        }
+        if !scene.has_emitters(level) {
+            log.warn("the level has no emitter pixels facing free space: the lightmap is black");
+        }
+        let channels = if settings.exhaustive {
+            ChannelPlan::every_channel()
+        } else {
+            plan_channels(level, &scene.used)
+        };
+        channels.log_skips(log);
+
+        let np = scene.patch_count();
+        let any_reflects = scene.reflects(&channels.classes);
+        let lit = !channels.classes.is_empty();
+        let mut bounce = lit && (any_reflects || settings.exhaustive) && np > 0;
+        if lit && !any_reflects && !settings.exhaustive {
+            log.skip("bounce", "no wall reflects");
+        }
+        if bounce && settings.bounces == Some(0) {
+            log.skip("bounce", "bounces = 0: direct light only");
+            bounce = false;
+        }
+        // Responses trace every emitter material, whatever its palette
+        // emission, so that a relight may switch it on.
+        let responses = settings
+            .responses
+            .then(|| ResponsePlan::new(level, &scene.used));
+        let response_bounce = responses.as_ref().is_some_and(|rp| {
+            !rp.emitters.is_empty()
+                && np > 0
+                && settings.bounces != Some(0)
+                && scene.reflects(&rp.rho_reps)
+        });
+        Plan {
+            channels,
+            bounce,
+            responses,
+            response_bounce,
+        }
+    }
+
+    /// True when form factors are needed: some bounce is to be solved.
+    pub fn needs_form_factors(&self) -> bool {
+        self.bounce || self.response_bounce
+    }
+}
+
+/// Which channels need a solve, and which can copy another or be zero.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ChannelPlan {
+    /// For each channel: `Some(k)` = uses the result of distinct class `k`;
+    /// `None` = no emission anywhere, the channel is dark.
+    pub class_of: [Option<usize>; 3],
+    /// A representative channel per distinct class.
+    pub classes: Vec<usize>,
+}
+
+impl ChannelPlan {
+    /// Every channel solved on its own (the exhaustive bake).
+    pub fn every_channel() -> ChannelPlan {
+        ChannelPlan {
+            class_of: [Some(0), Some(1), Some(2)],
+            classes: vec![0, 1, 2],
+        }
+    }
+
+    /// Records the dark channels and the shared solves.
+    fn log_skips(&self, log: &mut Log) {
+        for c in 0..3 {
+            if self.class_of[c].is_none() {
+                log.skip(
+                    format!("{} channel", CHANNEL[c]),
+                    "no emission in this channel",
+                );
+            }
+        }
+        if self.classes.len() == 1 && self.class_of.iter().all(Option::is_some) {
+            log.skip("channel solves", "grey scene: 1 solve for 3 channels");
+            return;
+        }
+        for c in 0..3 {
+            if let Some(k) = self.class_of[c]
+                && self.classes[k] != c
+            {
+                log.skip(
+                    format!("{} channel", CHANNEL[c]),
+                    format!(
+                        "same materials as {}: result shared",
+                        CHANNEL[self.classes[k]]
+                    ),
+                );
+            }
+        }
+    }
+}
+
+/// Groups channels whose reflectance and emission are equal for every used
+/// material (a grey scene has one class), and drops channels with no emission.
+pub fn plan_channels(level: &Level, used: &[bool]) -> ChannelPlan {
+    let mut class_of = [None; 3];
+    let mut classes: Vec<usize> = Vec::new();
+    for c in 0..3 {
+        let emits = level
+            .materials
+            .iter()
+            .zip(used)
+            .any(|(m, &u)| u && m.emission[c] > 0.0);
+        if !emits {
+            continue;
+        }
+        let same = |a: usize, b: usize| {
+            level.materials.iter().zip(used).all(|(m, &u)| {
+                !u || (m.emission[a] == m.emission[b] && m.reflectance[a] == m.reflectance[b])
+            })
+        };
+        match classes.iter().position(|&r| same(r, c)) {
+            Some(k) => class_of[c] = Some(k),
+            None => {
+                class_of[c] = Some(classes.len());
+                classes.push(c);
+            }
+        }
+    }
+    ChannelPlan { class_of, classes }
+}
+
+/// Which response vectors a bake traces besides its own channels: every
+/// emitter material on its own, once per reflectance class.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ResponsePlan {
+    /// Indices into [`Level::materials`] of the emitter materials, in order.
+    pub emitters: Vec<usize>,
+    /// Which reflectance class each channel uses.
+    pub rho_class_of: [usize; 3],
+    /// A representative channel per reflectance class.
+    pub rho_reps: Vec<usize>,
+}
+
+impl ResponsePlan {
+    /// The emitter materials some edge uses, and the channels whose
+    /// reflectance is equal for every used material, grouped.
+    pub fn new(level: &Level, used: &[bool]) -> ResponsePlan {
+        let emitters = level
+            .materials
+            .iter()
+            .enumerate()
+            .filter(|(i, m)| used[*i] && m.kind == MaterialKind::Emitter)
+            .map(|(i, _)| i)
+            .collect();
+        let mut rho_class_of = [0; 3];
+        let mut rho_reps: Vec<usize> = Vec::new();
+        for c in 0..3 {
+            let same = |a: usize| {
+                level
+                    .materials
+                    .iter()
+                    .zip(used)
+                    .all(|(m, &u)| !u || m.reflectance[a] == m.reflectance[c])
+            };
+            match rho_reps.iter().position(|&r| same(r)) {
+                Some(k) => rho_class_of[c] = k,
+                None => {
+                    rho_class_of[c] = rho_reps.len();
+                    rho_reps.push(c);
+                }
+            }
+        }
+        ResponsePlan {
+            emitters,
+            rho_class_of,
+            rho_reps,
+        }
+    }
+}

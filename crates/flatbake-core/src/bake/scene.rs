@@ -1,0 +1,87 @@
+//! The first stage: the resolved level's walls traced into edges, cut into
+//! patches, and each patch's material read out as numbers per channel.
+//!
+//! Later stages never look at the level's materials again: what a patch
+//! emits and reflects is in [`Scene`], per channel.
+
+use crate::geometry::{self, Geometry};
+use crate::level::Level;
+use crate::level::material::MaterialKind;
+use crate::transport::Patches;
+
+/// A traced level with its materials resolved per patch and per edge.
+pub struct Scene {
+    /// The traced walls.
+    pub geometry: Geometry,
+    /// Every edge cut into patches no longer than the preset's patch length.
+    pub patches: Patches,
+    /// Which of the level's materials some edge is made of.
+    pub used: Vec<bool>,
+    /// Reflectance per channel, per patch.
+    pub rho: [Vec<f64>; 3],
+    /// Emission per channel, per patch.
+    pub emit: [Vec<f64>; 3],
+    /// Emission per channel, per edge.
+    pub edge_emit: [Vec<f64>; 3],
+    /// Patches of an emitter material, whatever its emission (a relight may
+    /// switch on an emitter the palette leaves at 0).
+    pub emitter_patch: Vec<bool>,
+    /// The floor pixels, the query points of the gather.
+    pub floor_pixels: Vec<[i32; 2]>,
+}
+
+impl Scene {
+    /// Traces `level` and cuts its edges into patches of at most `patch_len`.
+    pub fn new(level: &Level, patch_len: f64) -> Scene {
+        let geometry = geometry::trace(level);
+        let patches = Patches::new(&geometry, patch_len);
+        let edges = &geometry.edges;
+        let np = patches.len();
+        let mut used = vec![false; level.materials.len()];
+        for e in edges {
+            used[e.material as usize] = true;
+        }
+        let mat = |p: usize| &level.materials[edges[patches.edge[p] as usize].material as usize];
+        let rho = std::array::from_fn(|c| (0..np).map(|p| mat(p).reflectance[c]).collect());
+        let emit = std::array::from_fn(|c| (0..np).map(|p| mat(p).emission[c]).collect());
+        let edge_emit = std::array::from_fn(|c| {
+            edges
+                .iter()
+                .map(|e| level.materials[e.material as usize].emission[c])
+                .collect()
+        });
+        let emitter_patch = (0..np)
+            .map(|p| mat(p).kind == MaterialKind::Emitter)
+            .collect();
+        Scene {
+            floor_pixels: crate::gather::floor_pixels(level),
+            geometry,
+            patches,
+            used,
+            rho,
+            emit,
+            edge_emit,
+            emitter_patch,
+        }
+    }
+
+    /// Number of patches.
+    pub fn patch_count(&self) -> usize {
+        self.patches.len()
+    }
+
+    /// True when some edge's material emits light.
+    pub fn has_emitters(&self, level: &Level) -> bool {
+        self.geometry
+            .edges
+            .iter()
+            .any(|e| level.materials[e.material as usize].emits())
+    }
+
+    /// True when some patch reflects in one of `channels`.
+    pub fn reflects(&self, channels: &[usize]) -> bool {
+        channels
+            .iter()
+            .any(|&c| self.rho[c].iter().any(|&r| r > 0.0))
+    }
+}
