@@ -68,7 +68,7 @@ fn preview_bake(level: &Painted, dir: &std::path::Path) -> anyhow::Result<()> {
     use flatbake_core::bake::{Settings, bake};
     use flatbake_core::level::Level;
     use flatbake_core::level::palette::Palette;
-    use flatbake_core::output::{OutputOptions, write_images};
+    use flatbake_core::output::{OutputOptions, encode_images, write_files};
     use flatbake_core::quality::Quality;
 
     std::fs::create_dir_all(dir)?;
@@ -85,7 +85,8 @@ fn preview_bake(level: &Painted, dir: &std::path::Path) -> anyhow::Result<()> {
     settings.falloff = palette.settings.falloff;
     let t = std::time::Instant::now();
     let baked = bake(&lv, &settings, &|_| {})?;
-    let written = write_images(dir, &lv, &baked.lightmap, &OutputOptions::default())?;
+    let images = encode_images(&lv, &baked.lightmap, &OutputOptions::default())?;
+    let written = write_files(dir, &lv.name, &images)?;
     contact_sheet(
         level,
         &written,

@@ -267,14 +267,15 @@ fn sweep(a: &SweepArgs) -> u8 {
     let result = with_jobs(a.jobs, || {
         let (all, failures) =
             flatbake_core::accuracy::run(&a.levels, &|msg| spinner.set_message(msg.to_string()));
-        flatbake_core::accuracy::write_tables(&a.out, &all)?;
+        flatbake_core::accuracy::write_tables(&a.out, &all).map_err(|e| e.to_string())?;
         let png = a.out.join("accuracy.png");
-        flatbake_core::output::write_atomic(&png, &crate::plot::plot(&all)?)
-            .map_err(|e| format!("cannot write {}: {e}", png.display()))?;
+        flatbake_core::output::write_file_atomic(&png, &crate::plot::plot(&all)?)
+            .map_err(|e| e.to_string())?;
         if failures.is_empty() {
             Ok(all)
         } else {
-            Err(failures.join("\n"))
+            let lines: Vec<String> = failures.iter().map(ToString::to_string).collect();
+            Err(lines.join("\n"))
         }
     });
     spinner.finish_and_clear();
@@ -406,7 +407,7 @@ fn bake(a: &BakeArgs) -> u8 {
 fn relight(a: &RelightArgs) -> u8 {
     let mut emission = Vec::new();
     for e in &a.emission {
-        match flatbake_core::output::cache::parse_emission(e) {
+        match flatbake_core::batch::relight::parse_emission(e) {
             Ok(v) => emission.push(v),
             Err(msg) => {
                 eprintln!("flatbake: {msg}");
@@ -414,14 +415,14 @@ fn relight(a: &RelightArgs) -> u8 {
             }
         }
     }
-    let opts = flatbake_core::output::cache::RelightOptions {
+    let opts = flatbake_core::batch::relight::RelightOptions {
         out_dir: a.out.clone(),
         emission,
         level_image: a.level.clone(),
         layers: a.layers,
         hdr: a.hdr,
     };
-    match flatbake_core::output::cache::relight(&a.cache, &opts) {
+    match flatbake_core::batch::relight::relight(&a.cache, &opts) {
         Ok(report) => {
             if !a.quiet {
                 eprintln!(

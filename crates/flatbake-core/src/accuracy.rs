@@ -16,7 +16,8 @@ use crate::bake::report::Timings;
 use crate::bake::{self, Settings};
 use crate::level::palette::Palette;
 use crate::level::{self, Cell, Level, LoadLimits};
-use crate::output::write_atomic;
+use crate::error::{Error, Result};
+use crate::output::write_file_atomic;
 use crate::quality::{Knobs, Quality};
 
 /// Largest relative RMS change allowed between `reference` and its refinement.
@@ -25,12 +26,17 @@ pub const REFERENCE_TOLERANCE: f64 = 5e-4;
 /// One measured setting of one level.
 #[derive(Clone, Debug)]
 pub struct Row {
+    /// The level's name.
     pub level: String,
     /// A preset name, or `step` for an in-between setting.
     pub quality: String,
+    /// The discretisation baked with.
     pub knobs: Knobs,
+    /// Seconds of the whole bake.
     pub seconds: f64,
+    /// Seconds per stage.
     pub timings: Timings,
+    /// Patches of the bake.
     pub patches: usize,
     /// Relative RMS error over floor pixels and channels against `reference`.
     pub rel_rmse: f64,
@@ -83,26 +89,29 @@ pub fn compare(level: &Level, a: &[[f32; 3]], reference: &[[f32; 3]]) -> (f64, f
 }
 
 fn bake_with(
+    path: &Path,
     level: &Level,
     palette: &Palette,
     quality: Quality,
     knobs: Knobs,
-) -> Result<(bake::Baked, f64), String> {
+) -> Result<(bake::Baked, f64)> {
     let mut s = Settings::new(quality);
     s.knobs = knobs;
     s.falloff = palette.settings.falloff;
     s.bounces = palette.settings.bounces;
     let t = Instant::now();
-    let b = bake::bake(level, &s, &|_| {}).map_err(|e| format!("{}: {e}", level.name))?;
+    let b = bake::bake(level, &s, &|_| {}).map_err(|source| Error::Bake {
+        path: path.to_path_buf(),
+        source,
+    })?;
     Ok((b, t.elapsed().as_secs_f64()))
 }
 
 /// Sweeps one level; returns its rows and the reference convergence check
 /// (relative RMS change when the reference is refined).
-pub fn sweep_level(path: &Path, progress: &dyn Fn(&str)) -> Result<(Vec<Row>, f64), String> {
-    let palette = Palette::resolve_for_level(path, None).map_err(|e| e.to_string())?;
-    let level =
-        level::load_level(path, &palette, LoadLimits::default()).map_err(|e| e.to_string())?;
+pub fn sweep_level(path: &Path, progress: &dyn Fn(&str)) -> Result<(Vec<Row>, f64)> {
+    let palette = Palette::resolve_for_level(path, None)?;
+    let level = level::load_level(path, &palette, LoadLimits::default())?;
     let ladder = settings_ladder();
     let mut baked = Vec::new();
     for (name, knobs) in &ladder {
@@ -111,7 +120,7 @@ pub fn sweep_level(path: &Path, progress: &dyn Fn(&str)) -> Result<(Vec<Row>, f6
             level.name, knobs.patch_len, knobs.quad
         ));
         let quality = preset_of(name).unwrap_or(Quality::Reference);
-        let (b, secs) = bake_with(&level, &palette, quality, *knobs)?;
+        let (b, secs) = bake_with(path, &level, &palette, quality, *knobs)?;
         baked.push((name.clone(), *knobs, b, secs));
     }
     let reference = &baked
@@ -143,7 +152,7 @@ pub fn sweep_level(path: &Path, progress: &dyn Fn(&str)) -> Result<(Vec<Row>, f6
         quad: (2 * r.quad).min(8),
         ..r
     };
-    let (fine, _) = bake_with(&level, &palette, Quality::Reference, finer)?;
+    let (fine, _) = bake_with(path, &level, &palette, Quality::Reference, finer)?;
     let (check, _) = compare(&level, reference, &fine.lightmap.rgb);
     Ok((rows, check))
 }
@@ -154,7 +163,7 @@ fn preset_of(name: &str) -> Option<Quality> {
 
 /// Sweeps every level of `levels` (files or folders); returns the levels
 /// swept and the errors of those that could not be.
-pub fn run(levels: &[PathBuf], progress: &dyn Fn(&str)) -> (Vec<LevelRows>, Vec<String>) {
+pub fn run(levels: &[PathBuf], progress: &dyn Fn(&str)) -> (Vec<LevelRows>, Vec<Error>) {
     let mut all = Vec::new();
     let mut failures = Vec::new();
     for path in crate::batch::collect_levels(levels) {
@@ -167,11 +176,10 @@ pub fn run(levels: &[PathBuf], progress: &dyn Fn(&str)) -> (Vec<LevelRows>, Vec<
 }
 
 /// Writes `accuracy.csv` and `accuracy.md` into `dir` (created if missing).
-pub fn write_tables(dir: &Path, all: &[LevelRows]) -> Result<(), String> {
-    crate::output::ensure_output_dir(dir).map_err(|e| e.to_string())?;
+pub fn write_tables(dir: &Path, all: &[LevelRows]) -> Result<()> {
+    crate::output::ensure_output_dir(dir)?;
     for (name, text) in [("accuracy.csv", csv(all)), ("accuracy.md", markdown(all))] {
-        write_atomic(&dir.join(name), text.as_bytes())
-            .map_err(|e| format!("cannot write {}: {e}", dir.join(name).display()))?;
+        write_file_atomic(&dir.join(name), text.as_bytes())?;
     }
     Ok(())
 }

@@ -33,73 +33,10 @@ pub fn gather(
     solved: &Solved,
     log: &mut Log,
 ) -> Gathered {
-    let (settings, geometry, patches) = (ctx.settings, &scene.geometry, &scene.patches);
-    let edges = &geometry.edges;
-    let k_main = solved.class_b.len();
-    let kk = k_main + solved.responses.len();
-    // Per-edge emission of every component.
-    let mut edge_e: Vec<Vec<f64>> = plan
-        .channels
-        .classes
-        .iter()
-        .map(|&c| scene.edge_emit[c].clone())
-        .collect();
-    edge_e.extend(solved.responses.iter().map(|r| r.edge_emission.clone()));
-    let slopes = slopes(scene, plan, transport, solved, &edge_e);
-    let mut all_b = solved.class_b.clone();
-    all_b.extend(solved.responses.iter().map(|r| r.b.clone()));
-    let rad = Radiosity::new(patches, &all_b, &slopes, &edge_e);
-    // With falloff, pairs whose light is below the preset's bound (relative
-    // to the brightest emission) are not gathered.
-    // With responses, the lightmap is made of them alone, and the reach comes
-    // from them alone (unit emission, bound relative to it): then what is
-    // culled does not depend on emission, and a relight with any emission is
-    // exactly the bake of that emission. Each culled pair still stays below
-    // reach_bound x its emitter's emission.
-    let (reach_comps, reach_threshold) = if solved.responses.is_empty() {
-        (0..kk, ctx.reach_bound * brightest_emission(ctx, scene))
-    } else {
-        (k_main..kk, ctx.reach_bound * TRACED_EMISSION)
-    };
-    let reach = {
-        let bmax: Vec<f64> = (0..edges.len())
-            .map(|ei| {
-                let mut m: f64 = 0.0;
-                for p in patches.of_edge(ei) {
-                    for c in reach_comps.clone() {
-                        m = m.max(
-                            rad.patch(patches, p, c)
-                                + rad.slope[p * kk + c].abs() * 0.5 * patches.length(p),
-                        );
-                    }
-                }
-                m
-            })
-            .collect();
-        let lens: Vec<f64> = edges.iter().map(|e| e.len()).collect();
-        Reach::new(
-            &lens,
-            &bmax,
-            ctx.falloff,
-            1.0 / std::f64::consts::TAU,
-            reach_threshold,
-        )
-    };
-    // Free components that no lit edge faces receive nothing: not gathered.
-    let mut lit_comp = vec![false; geometry.component_count as usize];
-    for (i, e) in edges.iter().enumerate() {
-        if rad.edge_emits[i] || rad.edge_reflects[i] {
-            lit_comp[e.component as usize] = true;
-        }
-    }
-    let width = ctx.level.width;
-    let (reached, unreached): (Vec<[i32; 2]>, Vec<[i32; 2]>) =
-        scene.floor_pixels.iter().partition(|p| {
-            kk > 0
-                && (settings.exhaustive
-                    || lit_comp
-                        [geometry.components[p[1] as usize * width + p[0] as usize] as usize])
-        });
+    let rad = components(scene, plan, transport, solved);
+    let kk = rad.components;
+    let rule = ReachRule::new(ctx, scene, solved, &rad);
+    let (reached, unreached) = reachable_pixels(ctx, scene, &rad);
     if !unreached.is_empty() && kk > 0 {
         log.skip(
             "gather",
@@ -109,57 +46,21 @@ pub fn gather(
             ),
         );
     }
-    let mut culled_pairs = 0;
-    let mut unreached_in_reach = 0usize;
-    let values = if kk == 0 || reached.is_empty() {
-        Vec::new()
+    let run = if kk == 0 || reached.is_empty() {
+        Run::default()
     } else {
-        match settings.gather {
-            GatherMethod::Fast => {
-                let (v, stats, counts) = gather::gather(
-                    geometry,
-                    patches,
-                    &rad,
-                    ctx.falloff,
-                    settings.kernel,
-                    &reached,
-                    &reach,
-                    reach_threshold,
-                    reach_comps.clone(),
-                );
-                culled_pairs += stats.culled_pairs;
-                unreached_in_reach = stats.unreached as usize;
-                if ctx.reach_bound > 0.0 && counts.pieces < counts.patch_pieces {
-                    log.skip(
-                        "distant patches",
-                        format!(
-                            "reflected light gathered as {} pieces for {} patch pieces (nearly quadratic runs far from the pixel taken whole; error at most {:e} of the brightest emission per pixel)",
-                            counts.pieces, counts.patch_pieces, ctx.reach_bound
-                        ),
-                    );
-                }
-                v
-            }
-            GatherMethod::Naive => gather::gather_naive(
-                geometry,
-                patches,
-                &rad,
-                ctx.falloff,
-                settings.kernel,
-                &reached,
-                settings.naive_samples,
-            ),
-        }
+        run(ctx, scene, &rad, rule, &reached, log)
     };
-    if unreached_in_reach > 0 {
+    if run.unreached > 0 {
         log.skip(
             "gather",
             format!(
-                "{unreached_in_reach} floor pixels that no lit edge reaches: every one is hidden from them or beyond its falloff reach (left at 0)"
+                "{} floor pixels that no lit edge reaches: every one is hidden from them or beyond its falloff reach (left at 0)",
+                run.unreached
             ),
         );
     }
-    let all_culled = transport.culled_pairs + culled_pairs;
+    let all_culled = transport.culled_pairs + run.culled_pairs;
     if all_culled > 0 {
         log.skip(
             "falloff reach",
@@ -171,15 +72,180 @@ pub fn gather(
     }
     Gathered {
         reached,
-        values,
+        values: run.values,
         components: kk,
         unreached: if kk > 0 {
-            unreached.len() + unreached_in_reach
+            unreached.len() + run.unreached
         } else {
             scene.floor_pixels.len()
         },
-        culled_pairs,
+        culled_pairs: run.culled_pairs,
     }
+}
+
+/// Which edge-pixel pairs are too faint to gather: the reach of every edge,
+/// the threshold it was found for, and the components that decide it.
+struct ReachRule {
+    reach: Reach,
+    threshold: f64,
+    decide: std::ops::Range<usize>,
+}
+
+impl ReachRule {
+    /// With falloff, pairs whose light is below the preset's bound (relative
+    /// to the brightest emission) are not gathered.
+    ///
+    /// With responses, the lightmap is made of them alone, and the reach
+    /// comes from them alone (unit emission, bound relative to it): then what
+    /// is culled does not depend on emission, and a relight with any emission
+    /// is exactly the bake of that emission. Each culled pair still stays
+    /// below reach_bound x its emitter's emission.
+    fn new(ctx: &Ctx, scene: &Scene, solved: &Solved, rad: &Radiosity) -> ReachRule {
+        let kk = rad.components;
+        let (decide, threshold) = if solved.responses.is_empty() {
+            (0..kk, ctx.reach_bound * brightest_emission(ctx, scene))
+        } else {
+            (solved.class_b.len()..kk, ctx.reach_bound * TRACED_EMISSION)
+        };
+        let reach = reach(ctx, scene, rad, decide.clone(), threshold);
+        ReachRule {
+            reach,
+            threshold,
+            decide,
+        }
+    }
+}
+
+/// What one gather returned.
+#[derive(Default)]
+struct Run {
+    values: Vec<f64>,
+    culled_pairs: u64,
+    /// Pixels whose every lit candidate edge is hidden or out of reach.
+    unreached: usize,
+}
+
+/// Gathers `reached` with the settings' method.
+fn run(
+    ctx: &Ctx,
+    scene: &Scene,
+    rad: &Radiosity,
+    rule: ReachRule,
+    reached: &[[i32; 2]],
+    log: &mut Log,
+) -> Run {
+    let (geometry, patches, settings) = (&scene.geometry, &scene.patches, ctx.settings);
+    match settings.gather {
+        GatherMethod::Fast => {
+            let (values, stats, counts) = gather::gather(
+                geometry,
+                patches,
+                rad,
+                ctx.falloff,
+                settings.kernel,
+                reached,
+                &rule.reach,
+                rule.threshold,
+                rule.decide,
+            );
+            if ctx.reach_bound > 0.0 && counts.pieces < counts.patch_pieces {
+                log.skip(
+                    "distant patches",
+                    format!(
+                        "reflected light gathered as {} pieces for {} patch pieces (nearly quadratic runs far from the pixel taken whole; error at most {:e} of the brightest emission per pixel)",
+                        counts.pieces, counts.patch_pieces, ctx.reach_bound
+                    ),
+                );
+            }
+            Run {
+                values,
+                culled_pairs: stats.culled_pairs,
+                unreached: stats.unreached as usize,
+            }
+        }
+        GatherMethod::Naive => Run {
+            values: gather::gather_naive(
+                geometry,
+                patches,
+                rad,
+                ctx.falloff,
+                settings.kernel,
+                reached,
+                settings.naive_samples,
+            ),
+            ..Run::default()
+        },
+    }
+}
+
+/// The radiosity of every component the gather computes together: the
+/// plan's channel classes, then the response vectors.
+fn components(scene: &Scene, plan: &Plan, transport: &Transport, solved: &Solved) -> Radiosity {
+    let mut edge_e: Vec<Vec<f64>> = plan
+        .channels
+        .classes
+        .iter()
+        .map(|&c| scene.edge_emit[c].clone())
+        .collect();
+    edge_e.extend(solved.responses.iter().map(|r| r.edge_emission.clone()));
+    let slopes = slopes(scene, plan, transport, solved, &edge_e);
+    let mut all_b = solved.class_b.clone();
+    all_b.extend(solved.responses.iter().map(|r| r.b.clone()));
+    Radiosity::new(&scene.patches, &all_b, &slopes, &edge_e)
+}
+
+/// How far each edge's light reaches: where its brightest radiosity over
+/// the components `decide`, under the falloff, falls below `threshold`.
+fn reach(
+    ctx: &Ctx,
+    scene: &Scene,
+    rad: &Radiosity,
+    decide: std::ops::Range<usize>,
+    threshold: f64,
+) -> Reach {
+    let (edges, patches) = (&scene.geometry.edges, &scene.patches);
+    let kk = rad.components;
+    let bmax: Vec<f64> = (0..edges.len())
+        .map(|ei| {
+            let mut m: f64 = 0.0;
+            for p in patches.of_edge(ei) {
+                for c in decide.clone() {
+                    m = m.max(
+                        rad.patch(patches, p, c)
+                            + rad.slope[p * kk + c].abs() * 0.5 * patches.length(p),
+                    );
+                }
+            }
+            m
+        })
+        .collect();
+    let lens: Vec<f64> = edges.iter().map(|e| e.len()).collect();
+    Reach::new(
+        &lens,
+        &bmax,
+        ctx.falloff,
+        1.0 / std::f64::consts::TAU,
+        threshold,
+    )
+}
+
+/// The floor pixels split into those in free regions that some lit edge
+/// faces and the rest, which receive nothing (all of them, with nothing to
+/// gather; none of them, for the exhaustive bake).
+fn reachable_pixels(ctx: &Ctx, scene: &Scene, rad: &Radiosity) -> (Vec<[i32; 2]>, Vec<[i32; 2]>) {
+    let geometry = &scene.geometry;
+    let mut lit_comp = vec![false; geometry.component_count as usize];
+    for (i, e) in geometry.edges.iter().enumerate() {
+        if rad.edge_emits[i] || rad.edge_reflects[i] {
+            lit_comp[e.component as usize] = true;
+        }
+    }
+    let width = ctx.level.width;
+    scene.floor_pixels.iter().partition(|p| {
+        rad.components > 0
+            && (ctx.settings.exhaustive
+                || lit_comp[geometry.components[p[1] as usize * width + p[0] as usize] as usize])
+    })
 }
 
 /// The brightest emission of any channel of any material some edge uses.

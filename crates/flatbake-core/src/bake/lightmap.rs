@@ -45,7 +45,6 @@ pub fn assemble(
     let (geometry, patches) = (&scene.geometry, &scene.patches);
     let np = patches.len();
     let kk = gathered.components;
-    let k_main = solved.class_b.len();
     let mut rgb = vec![[0f32; 3]; level.width * level.height];
     for (i, p) in gathered.reached.iter().enumerate() {
         let px = &mut rgb[p[1] as usize * level.width + p[0] as usize];
@@ -55,7 +54,52 @@ pub fn assemble(
             }
         }
     }
-    let responses = plan.responses.as_ref().map(|rp| {
+    let responses = responses(ctx, scene, plan, solved, gathered);
+    // Solid pixels: mean radiosity of their exposed sides.
+    let radiosity: [Vec<f64>; 3] = std::array::from_fn(|c| {
+        plan.channels.class_of[c].map_or_else(|| vec![0.0; np], |k| solved.class_b[k].clone())
+    });
+    solid_pixels(level, geometry, patches, &radiosity, &mut rgb);
+    // With responses, the lightmap is their sum at the palette's emission, so
+    // that layers (and a relight with unchanged emission) add up to it
+    // exactly. It differs from the direct result only where the positivity
+    // limiter on patch slopes (`PointRows::slopes`) acts differently on one
+    // emitter's light than on the sum, a small fraction of a percent.
+    if let Some(r) = &responses {
+        let e: Vec<[f64; 3]> = r
+            .emitters
+            .iter()
+            .map(|&m| level.materials[m].emission)
+            .collect();
+        rgb = r.combine(&e);
+    }
+    Assembled {
+        lightmap: Lightmap {
+            width: level.width,
+            height: level.height,
+            rgb,
+        },
+        responses,
+        radiosity,
+    }
+}
+
+/// The per-emitter images of the responses the plan traced, at unit
+/// emission: the gathered light on floor pixels, the radiosity of their
+/// exposed sides on solid pixels.
+fn responses(
+    ctx: &Ctx,
+    scene: &Scene,
+    plan: &Plan,
+    solved: &Solved,
+    gathered: &Gathered,
+) -> Option<Responses> {
+    let level = ctx.level;
+    let (geometry, patches) = (&scene.geometry, &scene.patches);
+    let np = patches.len();
+    let kk = gathered.components;
+    let k_main = solved.class_b.len();
+    plan.responses.as_ref().map(|rp| {
         let n = level.width * level.height;
         let zeros = vec![0.0; np];
         let images = solved
@@ -84,34 +128,7 @@ pub fn assemble(
             images,
             traced_emission: TRACED_EMISSION,
         }
-    });
-    // Solid pixels: mean radiosity of their exposed sides.
-    let radiosity: [Vec<f64>; 3] = std::array::from_fn(|c| {
-        plan.channels.class_of[c].map_or_else(|| vec![0.0; np], |k| solved.class_b[k].clone())
-    });
-    solid_pixels(level, geometry, patches, &radiosity, &mut rgb);
-    // With responses, the lightmap is their sum at the palette's emission, so
-    // that layers (and a relight with unchanged emission) add up to it
-    // exactly. It differs from the direct result only where the positivity
-    // limiter on patch slopes (`PointRows::slopes`) acts differently on one
-    // emitter's light than on the sum, a small fraction of a percent.
-    if let Some(r) = &responses {
-        let e: Vec<[f64; 3]> = r
-            .emitters
-            .iter()
-            .map(|&m| level.materials[m].emission)
-            .collect();
-        rgb = r.combine(&e);
-    }
-    Assembled {
-        lightmap: Lightmap {
-            width: level.width,
-            height: level.height,
-            rgb,
-        },
-        responses,
-        radiosity,
-    }
+    })
 }
 
 /// Never hands out NaN or negative light: clamps it to 0 with a warning

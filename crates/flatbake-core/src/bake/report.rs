@@ -7,20 +7,30 @@ use serde::{Deserialize, Serialize};
 /// Seconds of wall time per stage.
 #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
 pub struct Timings {
+    /// Reading the image and palette, and hashing the inputs.
     pub load: f64,
+    /// Tracing the walls and cutting patches.
     pub geometry: f64,
+    /// The form factors between patches.
     pub form_factors: f64,
+    /// The channel solves.
     pub solve: f64,
+    /// The floor gather and the lightmap's assembly.
     pub gather: f64,
+    /// Encoding and writing the output files.
     pub write: f64,
+    /// The whole level, writing included.
     pub total: f64,
 }
 
 /// Sizes of the problem.
 #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
 pub struct Counts {
+    /// Transport edges (merged runs of one material facing free space).
     pub edges: usize,
+    /// Patches the edges are cut into.
     pub patches: usize,
+    /// Floor pixels, lit or not.
     pub floor_pixels: usize,
     /// Non-zero entries of the form-factor matrix F.
     #[serde(default)]
@@ -38,29 +48,43 @@ pub struct Counts {
 /// kernel (escaped includes light lost to falloff).
 #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
 pub struct Energy {
+    /// Power emitted by every emitter.
     pub emitted: f64,
+    /// Power absorbed by walls.
     pub absorbed: f64,
+    /// Power leaving the level (out of the image, into void, or lost to falloff).
     pub escaped: f64,
 }
 
 /// One thing the baker decided not to simulate, and why.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct Skip {
+    /// The effect left out ("bounce", "red channel", "falloff reach", ...).
     pub effect: String,
+    /// Why it could be left out, and what that costs.
     pub reason: String,
 }
 
 /// The report of one baked level.
 #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
 pub struct Report {
+    /// The level's name (its image's file stem).
     pub level: String,
+    /// Width and height in pixels.
     pub size: [usize; 2],
+    /// The quality preset.
     pub quality: String,
+    /// The transport kernel ("flatland" or "paper").
     pub kernel: String,
+    /// The floor gather ("fast" or "naive").
     pub gather: String,
+    /// Half-energy distance of the falloff in pixels; `null` for none.
     pub falloff: Option<f64>,
+    /// The bounce series' truncation; `null` for the full solve.
     pub bounces: Option<u32>,
+    /// Sizes of the problem.
     pub counts: Counts,
+    /// Seconds per stage.
     pub timings: Timings,
     /// Channel solves actually run (0 to 3).
     pub solves: usize,
@@ -68,8 +92,11 @@ pub struct Report {
     pub residual: f64,
     /// Which solver ran ("none", "cholesky", "cg", "lu", "bounces", ...).
     pub solver: String,
+    /// Power emitted, absorbed and escaped.
     pub energy: Energy,
+    /// What was not simulated, and why.
     pub skipped: Vec<Skip>,
+    /// Problems worth telling the user that did not stop the bake.
     pub warnings: Vec<String>,
     /// Files written, relative to the output folder.
     #[serde(default)]

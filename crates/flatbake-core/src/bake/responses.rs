@@ -11,7 +11,9 @@
 /// void: 0).
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Responses {
+    /// Width of the images in pixels.
     pub width: usize,
+    /// Height of the images in pixels.
     pub height: usize,
     /// Indices into [`Level::materials`](crate::level::Level::materials) of the emitter materials, in order.
     pub emitters: Vec<usize>,

@@ -5,6 +5,7 @@
 //! [`LevelOutcome`], and the caller turns the worst outcome into the exit
 //! status.
 
+pub mod relight;
 pub mod stamp;
 
 use std::path::{Path, PathBuf};
@@ -14,27 +15,42 @@ use rayon::prelude::*;
 
 use crate::bake::report::Report;
 use crate::bake::{self, GatherMethod, Settings};
+use crate::error::{Error, Result};
 use crate::gather::Kernel;
 use crate::level::palette::Palette;
 use crate::level::{self, LoadLimits};
-use crate::output::{self, Depth, OutputOptions};
+use crate::output::cache::{Cache, CacheError};
+use crate::output::{self, Depth, Encoded, OutputKind, OutputOptions, names};
 use crate::quality::Quality;
+use stamp::Recipe;
 
 /// Options for a batch, as given on the command line (palette `[bake]`
 /// settings fill in what is `None` here, per level).
 #[derive(Clone, Debug)]
 pub struct BatchOptions {
+    /// Output folder (created if missing). Default `out`.
     pub out_dir: PathBuf,
+    /// Accuracy preset. Default `normal`.
     pub quality: Quality,
+    /// Half-energy distance of the falloff in pixels; `None`: the palette's, or none.
     pub falloff: Option<f64>,
+    /// Transport kernel. Default flatland.
     pub kernel: Kernel,
+    /// Floor gather. Default fast.
     pub gather: GatherMethod,
+    /// Palette for every level; `None`: the lookup beside each level.
     pub palette: Option<PathBuf>,
+    /// Truncate the bounce series; `None`: the palette's, or the full solve.
     pub bounces: Option<u32>,
+    /// Multiplies the PNG lightmaps; `None`: the palette's, or 1.
     pub exposure: Option<f64>,
+    /// Also write `NAME.lightmap.exr`.
     pub hdr: bool,
+    /// Bits per channel of the PNG outputs. Default 8.
     pub depth: Depth,
+    /// Also write `NAME.lightmap.rgbm.png`.
     pub rgbm: bool,
+    /// Limits checked before an image is decoded.
     pub limits: LoadLimits,
     /// Also write one layer per light group (implies the EXR lightmap).
     pub layers: bool,
@@ -42,6 +58,63 @@ pub struct BatchOptions {
     pub cache: bool,
     /// Bake even levels whose outputs are up to date.
     pub force: bool,
+}
+
+impl BatchOptions {
+    /// Every option that changes an output byte, spelled out for the stamp
+    /// (not the output folder, not `force`, not the thread count), and the
+    /// preset's knobs: a build that changes a preset re-bakes.
+    pub fn fingerprint(&self) -> String {
+        format!(
+            "{:?}{:?}",
+            (
+                self.quality,
+                self.falloff,
+                self.kernel,
+                self.gather,
+                self.bounces,
+                self.exposure,
+                self.hdr,
+                self.depth,
+                self.rgbm,
+                self.layers,
+                self.cache,
+                self.limits.max_pixels,
+            ),
+            self.quality.knobs()
+        )
+    }
+
+    /// The stamp recipe of level `path` with these options.
+    pub fn recipe<'a>(&'a self, path: &'a Path, fingerprint: &'a str) -> Recipe<'a> {
+        Recipe {
+            image: path,
+            palette: self.palette.as_deref(),
+            settings: fingerprint,
+        }
+    }
+
+    /// The bake settings of a level whose palette is `palette`: the
+    /// command line's, with the palette's `[bake]` filling in the rest.
+    pub fn settings(&self, palette: &Palette) -> Settings {
+        let mut settings = Settings::new(self.quality);
+        settings.falloff = self.falloff.or(palette.settings.falloff);
+        settings.bounces = self.bounces.or(palette.settings.bounces);
+        settings.kernel = self.kernel;
+        settings.gather = self.gather;
+        settings.responses = self.layers || self.cache;
+        settings
+    }
+
+    /// How a level whose palette is `palette` is encoded.
+    pub fn output_options(&self, palette: &Palette) -> OutputOptions {
+        OutputOptions {
+            exposure: self.exposure.or(palette.settings.exposure).unwrap_or(1.0),
+            depth: self.depth,
+            hdr: self.hdr || self.layers,
+            rgbm: self.rgbm,
+        }
+    }
 }
 
 impl Default for BatchOptions {
@@ -69,22 +142,30 @@ impl Default for BatchOptions {
 /// What happened to one level.
 #[derive(Debug)]
 pub enum LevelOutcome {
+    /// Baked and written.
     Baked {
+        /// The level image.
         path: PathBuf,
+        /// Its report, as written.
         report: Box<Report>,
     },
+    /// Not baked, or not written; the batch went on.
     Failed {
+        /// The level image (or the folder, or the missing path).
         path: PathBuf,
-        error: String,
+        /// Why.
+        error: Error,
     },
     /// Not baked: its outputs were made from the same image, palette,
     /// settings and flatbake version, and all still exist.
     UpToDate {
+        /// The level image.
         path: PathBuf,
     },
 }
 
 impl LevelOutcome {
+    /// The level image (or path) the outcome is about.
     pub fn path(&self) -> &Path {
         match self {
             LevelOutcome::Baked { path, .. }
@@ -151,33 +232,33 @@ pub fn is_level_file(p: &Path) -> bool {
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase)
         .unwrap_or_default();
-    LEVEL_EXTENSIONS.contains(&ext.as_str())
-        && ![".lightmap.", ".lit.", ".layer-", ".rgbm."]
-            .iter()
-            .any(|s| name.contains(s))
+    LEVEL_EXTENSIONS.contains(&ext.as_str()) && !names::is_output_image(name)
 }
 
 /// Bakes every level; returns the outcomes in input order.
 pub fn run(paths: &[PathBuf], opts: &BatchOptions, observer: &dyn Observer) -> Vec<LevelOutcome> {
     let levels = collect_levels(paths);
     let clashes = output_clashes(&levels);
+    let fingerprint = opts.fingerprint();
     levels
         .par_iter()
         .zip(&clashes)
         .map(|(path, clash)| {
-            if clash.is_none() && !opts.force && crate::batch::stamp::up_to_date(path, opts) {
+            if clash.is_none()
+                && !opts.force
+                && stamp::up_to_date(&opts.recipe(path, &fingerprint), &opts.out_dir)
+            {
                 let outcome = LevelOutcome::UpToDate { path: path.clone() };
                 observer.level_done(&outcome);
                 return outcome;
             }
             observer.level_started(path);
             let result = match clash {
-                Some(first) => Err(format!(
-                    "{}: not baked: its outputs would overwrite those of {} (both are named {:?}); rename one or bake them into different output folders",
-                    path.display(),
-                    first.display(),
-                    level_stem(path)
-                )),
+                Some(first) => Err(Error::NameClash {
+                    path: path.clone(),
+                    first: first.clone(),
+                    name: names::level_name(path),
+                }),
                 None => bake_one(path, opts, observer),
             };
             let outcome = match result {
@@ -196,13 +277,6 @@ pub fn run(paths: &[PathBuf], opts: &BatchOptions, observer: &dyn Observer) -> V
         .collect()
 }
 
-/// The name a level's outputs are written under (`NAME.lightmap.png`, ...).
-fn level_stem(path: &Path) -> String {
-    path.file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default()
-}
-
 /// For each level, the earlier level of the batch with the same output
 /// names, if any (`a/room.png` and `b/room.png`, or `room.png` and
 /// `room.bmp`): baking both would silently overwrite the first one's
@@ -212,77 +286,58 @@ fn output_clashes(levels: &[PathBuf]) -> Vec<Option<PathBuf>> {
     levels
         .iter()
         .map(|p| {
-            let f = *first.entry(level_stem(p)).or_insert(p);
+            let f = *first.entry(names::level_name(p)).or_insert(p);
             (f != p).then(|| f.clone())
         })
         .collect()
 }
 
-/// Bakes one level file and writes its outputs; the error is a complete
-/// sentence naming the file.
-pub fn bake_one(
-    path: &Path,
-    opts: &BatchOptions,
-    observer: &dyn Observer,
-) -> Result<Report, String> {
+/// Bakes one level file and writes its outputs: every file is encoded in
+/// memory first, then written, the report after every other output and the
+/// stamp last.
+pub fn bake_one(path: &Path, opts: &BatchOptions, observer: &dyn Observer) -> Result<Report> {
     let t_total = Instant::now();
     if path.is_dir() {
-        return Err(format!(
-            "{}: the folder holds no level images",
-            path.display()
-        ));
+        return Err(Error::NoLevels {
+            path: path.to_path_buf(),
+        });
     }
     let t = Instant::now();
-    let palette =
-        Palette::resolve_for_level(path, opts.palette.as_deref()).map_err(|e| e.to_string())?;
-    let level = level::load_level(path, &palette, opts.limits).map_err(|e| e.to_string())?;
+    let palette = Palette::resolve_for_level(path, opts.palette.as_deref())?;
+    let level = level::load_level(path, &palette, opts.limits)?;
     // What the stamp and cache record; hashed right after loading.
-    let inputs = crate::batch::stamp::inputs(path, opts)?;
+    let fingerprint = opts.fingerprint();
+    let recipe = opts.recipe(path, &fingerprint);
+    let inputs = stamp::inputs(&recipe)?;
     let load = t.elapsed().as_secs_f64();
 
-    let mut settings = Settings::new(opts.quality);
-    settings.falloff = opts.falloff.or(palette.settings.falloff);
-    settings.bounces = opts.bounces.or(palette.settings.bounces);
-    settings.kernel = opts.kernel;
-    settings.gather = opts.gather;
-    settings.responses = opts.layers || opts.cache;
-    let exposure = opts.exposure.or(palette.settings.exposure).unwrap_or(1.0);
-
-    let baked = bake::bake(&level, &settings, &|stage| observer.stage(path, stage))
-        .map_err(|e| format!("{}: {e}", path.display()))?;
+    let baked = bake::bake(&level, &opts.settings(&palette), &|stage| {
+        observer.stage(path, stage)
+    })
+    .map_err(|source| Error::Bake {
+        path: path.to_path_buf(),
+        source,
+    })?;
     let mut report = baked.report;
     report.timings.load = load;
 
     observer.stage(path, "write");
-    output::ensure_output_dir(&opts.out_dir).map_err(|e| e.to_string())?;
-    let out_opts = OutputOptions {
-        exposure,
-        depth: opts.depth,
-        hdr: opts.hdr || opts.layers,
-        rgbm: opts.rgbm,
-    };
+    output::ensure_output_dir(&opts.out_dir)?;
+    let out_opts = opts.output_options(&palette);
     // Writing adds its own time to `write` and `total`.
     report.timings.total = t_total.elapsed().as_secs_f64();
-    let mut written =
-        output::write_level_outputs(&opts.out_dir, &level, &baked.lightmap, &report, &out_opts)
-            .map_err(|e| e.to_string())?;
+    let start = Instant::now();
+    let images = output::encode_images(&level, &baked.lightmap, &out_opts)?;
+    let mut extra: Vec<Encoded> = Vec::new();
     if let Some(resp) = baked.responses {
         if opts.layers {
-            let emission = crate::output::layers::palette_emission(&level, &resp);
-            written.extend(
-                crate::output::layers::write_layers(
-                    &opts.out_dir,
-                    &level,
-                    &resp,
-                    &emission,
-                    &out_opts,
-                )
-                .map_err(|e| e.to_string())?,
-            );
+            let emission = output::layers::palette_emission(&level, &resp);
+            extra.extend(output::layers::encode_layers(
+                &level, &resp, &emission, &out_opts,
+            )?);
         }
         if opts.cache {
-            let cache_path = opts.out_dir.join(format!("{}.flatbake", level.name));
-            let cache = crate::output::cache::Cache::new(
+            let cache = Cache::new(
                 &level,
                 resp,
                 &report,
@@ -290,35 +345,32 @@ pub fn bake_one(
                 inputs.key.clone(),
                 &out_opts,
             );
-            let bytes = cache
-                .to_bytes()
-                .map_err(|e| format!("cannot encode the cache {}: {e}", cache_path.display()))?;
-            output::write_file_atomic(&cache_path, &bytes).map_err(|e| e.to_string())?;
-            written.push(cache_path);
+            let bytes = cache.to_bytes().map_err(|e| CacheError::Encode {
+                path: opts.out_dir.join(OutputKind::Cache.file_name(&level.name)),
+                message: e.to_string(),
+            })?;
+            extra.push(Encoded {
+                kind: OutputKind::Cache,
+                bytes,
+            });
         }
     }
-    report.outputs = written
+    // The report lists every file, itself after the images.
+    report.outputs = images
         .iter()
-        .filter_map(|p| p.file_name())
-        .map(|n| n.to_string_lossy().into_owned())
+        .map(|f| &f.kind)
+        .chain([&OutputKind::Report])
+        .chain(extra.iter().map(|f| &f.kind))
+        .map(|k| k.file_name(&level.name))
         .collect();
-    if opts.layers || opts.cache {
-        list_extra_outputs(&opts.out_dir, &level.name, &report.outputs)?;
-    }
-    crate::batch::stamp::write(path, opts, &inputs, &report.outputs)?;
+    let dir = &opts.out_dir;
+    output::write_files(dir, &level.name, &images)?;
+    output::write_files(dir, &level.name, &extra)?;
+    let seconds = start.elapsed().as_secs_f64();
+    report.timings.write = seconds;
+    report.timings.total += seconds;
+    let json = output::encode_report(dir, &level.name, &report)?;
+    output::write_files(dir, &level.name, &[json])?;
+    stamp::write(&recipe, dir, &inputs, &report.outputs)?;
     Ok(report)
-}
-
-/// The report is written before the layers and the cache (it comes from
-/// [`output::write_level_outputs`]); list those files in it too, so that
-/// scripts find every output in `NAME.report.json`.
-fn list_extra_outputs(dir: &Path, name: &str, outputs: &[String]) -> Result<(), String> {
-    let path = dir.join(output::OutputKind::Report.file_name(name));
-    let text = std::fs::read(&path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-    let mut written: Report = serde_json::from_slice(&text)
-        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-    written.outputs = outputs.to_vec();
-    let mut json = serde_json::to_vec_pretty(&written).map_err(|e| e.to_string())?;
-    json.push(b'\n');
-    output::write_file_atomic(&path, &json).map_err(|e| e.to_string())
 }

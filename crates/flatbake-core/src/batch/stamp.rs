@@ -6,12 +6,27 @@
 //! checking it out again does not trigger a bake, and an edit that keeps the
 //! same timestamp is never missed.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::batch::BatchOptions;
+use crate::error::{Error, Result};
 use crate::level::palette::Palette;
+use crate::output::{OutputError, OutputKind, names};
+
+/// What decides a level's outputs: its image, its palette, and every setting
+/// that changes an output byte.
+#[derive(Clone, Copy, Debug)]
+pub struct Recipe<'a> {
+    /// The level image.
+    pub image: &'a Path,
+    /// The palette given for every level; `None` means the lookup beside
+    /// the image ([`Palette::candidate_paths`]).
+    pub palette: Option<&'a Path>,
+    /// Every setting that changes an output, spelled out (not the output
+    /// folder, not `--force`, not the thread count).
+    pub settings: &'a str,
+}
 
 /// What one level's outputs were made from.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -25,41 +40,38 @@ pub struct Inputs {
 /// The stamp file's content.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct Stamp {
+    /// The flatbake version that baked the outputs.
     pub flatbake: String,
+    /// [`Inputs::key`] of what they were made from.
     pub inputs: String,
     /// Files written, relative to the output folder.
     pub outputs: Vec<String>,
 }
 
-/// The stamp file of level image `path` in `out_dir`.
-pub fn stamp_path(path: &Path, out_dir: &Path) -> PathBuf {
-    let name = path
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    out_dir.join(format!("{name}.stamp.json"))
-}
-
-/// Hashes what the outputs of level `path` depend on.
-pub fn inputs(path: &Path, opts: &BatchOptions) -> Result<Inputs, String> {
-    let image = std::fs::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-    let image_hash = blake3::hash(&image).to_hex().to_string();
+/// Hashes what the outputs of `recipe`'s level depend on.
+pub fn inputs(recipe: &Recipe) -> Result<Inputs> {
+    let read = |path: &Path| {
+        std::fs::read(path).map_err(|source| Error::Read {
+            path: path.to_path_buf(),
+            source,
+        })
+    };
+    let image_hash = blake3::hash(&read(recipe.image)?).to_hex().to_string();
     let mut h = blake3::Hasher::new();
     h.update(b"flatbake ");
     h.update(env!("CARGO_PKG_VERSION").as_bytes());
     h.update(b"\0image\0");
     h.update(image_hash.as_bytes());
     // The palette that the lookup picks: which file, and its bytes.
-    let palette_file = match &opts.palette {
-        Some(p) => Some(p.clone()),
-        None => Palette::candidate_paths(path)
+    let palette_file = match recipe.palette {
+        Some(p) => Some(p.to_path_buf()),
+        None => Palette::candidate_paths(recipe.image)
             .into_iter()
             .find(|c| c.is_file()),
     };
     match palette_file {
         Some(p) => {
-            let bytes =
-                std::fs::read(&p).map_err(|e| format!("cannot read {}: {e}", p.display()))?;
+            let bytes = read(&p)?;
             h.update(b"\0palette\0");
             h.update(p.to_string_lossy().as_bytes());
             h.update(b"\0");
@@ -69,69 +81,57 @@ pub fn inputs(path: &Path, opts: &BatchOptions) -> Result<Inputs, String> {
             h.update(b"\0palette\0built-in");
         }
     }
-    // Every option that changes an output (not the output folder, not
-    // --force, not the thread count).
-    let settings = format!(
-        "{:?}",
-        (
-            opts.quality,
-            opts.falloff,
-            opts.kernel,
-            opts.gather,
-            opts.bounces,
-            opts.exposure,
-            opts.hdr,
-            opts.depth,
-            opts.rgbm,
-            opts.layers,
-            opts.cache,
-            opts.limits.max_pixels,
-        )
-    );
     h.update(b"\0settings\0");
-    h.update(settings.as_bytes());
-    // The preset's knobs too: a build that changes a preset re-bakes.
-    h.update(format!("{:?}", opts.quality.knobs()).as_bytes());
+    h.update(recipe.settings.as_bytes());
     Ok(Inputs {
         image_hash,
         key: h.finalize().to_hex().to_string(),
     })
 }
 
-/// True when level `path`'s outputs in `opts.out_dir` were made from the
+/// The stamp file of `recipe`'s level in `out_dir`.
+fn stamp_path(recipe: &Recipe, out_dir: &Path) -> std::path::PathBuf {
+    out_dir.join(OutputKind::Stamp.file_name(&names::level_name(recipe.image)))
+}
+
+/// True when the outputs of `recipe`'s level in `out_dir` were made from the
 /// same inputs and all still exist. Any doubt (no stamp, unreadable stamp,
 /// unreadable input) means "not up to date".
-pub fn up_to_date(path: &Path, opts: &BatchOptions) -> bool {
-    let Ok(text) = std::fs::read(stamp_path(path, &opts.out_dir)) else {
+pub fn up_to_date(recipe: &Recipe, out_dir: &Path) -> bool {
+    let Ok(text) = std::fs::read(stamp_path(recipe, out_dir)) else {
         return false;
     };
     let Ok(stamp) = serde_json::from_slice::<Stamp>(&text) else {
         return false;
     };
-    let Ok(now) = inputs(path, opts) else {
+    let Ok(now) = inputs(recipe) else {
         return false;
     };
     stamp.flatbake == env!("CARGO_PKG_VERSION")
         && stamp.inputs == now.key
         && !stamp.outputs.is_empty()
-        && stamp.outputs.iter().all(|o| opts.out_dir.join(o).is_file())
+        && stamp.outputs.iter().all(|o| out_dir.join(o).is_file())
 }
 
-/// Records that level `path`'s `outputs` were made from `inputs`; written
-/// last, after every output, so that an interrupted bake is never stamped.
+/// Records that the `outputs` of `recipe`'s level were made from `inputs`;
+/// written last, after every output, so that an interrupted bake is never
+/// stamped.
 pub fn write(
-    path: &Path,
-    opts: &BatchOptions,
+    recipe: &Recipe,
+    out_dir: &Path,
     inputs: &Inputs,
     outputs: &[String],
-) -> Result<(), String> {
+) -> Result<(), OutputError> {
     let stamp = Stamp {
         flatbake: env!("CARGO_PKG_VERSION").into(),
         inputs: inputs.key.clone(),
         outputs: outputs.to_vec(),
     };
-    let mut json = serde_json::to_vec_pretty(&stamp).map_err(|e| e.to_string())?;
+    let path = stamp_path(recipe, out_dir);
+    let mut json = serde_json::to_vec_pretty(&stamp).map_err(|e| OutputError::Encode {
+        path: path.clone(),
+        message: e.to_string(),
+    })?;
     json.push(b'\n');
-    crate::output::write_file_atomic(&stamp_path(path, &opts.out_dir), &json)
-        .map_err(|e| e.to_string())
+    crate::output::write_file_atomic(&path, &json)
 }

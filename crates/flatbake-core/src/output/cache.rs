@@ -16,16 +16,14 @@
 //! are each refused with their own message.
 
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
-use crate::bake::Lightmap;
 use crate::bake::Responses;
-use crate::bake::report::{Energy, Report, Skip, Timings};
+use crate::bake::report::Report;
 use crate::level::material::{Material, MaterialKind, hex_color};
 use crate::level::{Cell, Level};
-use crate::output::{self, Depth, OutputOptions};
+use crate::output::{Depth, OutputOptions};
 
 /// First bytes of every cache file.
 pub const MAGIC: &[u8; 16] = b"flatbake-cache\n\0";
@@ -34,15 +32,93 @@ pub const FORMAT: u32 = 1;
 /// The flatbake version writing and reading caches.
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 
+/// Why a cache could not be read, written or used. Every message names the
+/// file and says what to do.
+#[derive(Debug, thiserror::Error)]
+pub enum CacheError {
+    /// The file does not start with [`MAGIC`].
+    #[error("{} is not a flatbake cache (write one with `flatbake bake --cache`)", .path.display())]
+    NotACache {
+        /// The file.
+        path: PathBuf,
+    },
+    /// Another flatbake version or cache format wrote it.
+    #[error(
+        "{} was written by flatbake {version} (cache format {format}); this is flatbake {VERSION} (format {FORMAT}): bake the level again with --cache",
+        .path.display()
+    )]
+    OtherVersion {
+        /// The file.
+        path: PathBuf,
+        /// The version that wrote it.
+        version: String,
+        /// The format number it has.
+        format: u32,
+    },
+    /// The header, checksum or content is broken.
+    #[error("{} is a damaged flatbake cache ({why}): bake the level again with --cache", .path.display())]
+    Damaged {
+        /// The file.
+        path: PathBuf,
+        /// What is broken.
+        why: String,
+    },
+    /// The file cannot be read.
+    #[error("cannot read {}: {source}", .path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// The cache could not be serialised.
+    #[error("cannot encode the cache {}: {message}", .path.display())]
+    Encode {
+        /// The file it was for.
+        path: PathBuf,
+        /// The serialiser's message.
+        message: String,
+    },
+    /// `--level` names another image than the one the cache was baked from.
+    #[error(
+        "{} was baked from another image than {} (or the image changed since): bake it again with --cache",
+        .cache.display(),
+        .image.display()
+    )]
+    OtherImage {
+        /// The cache.
+        cache: PathBuf,
+        /// The image it was checked against.
+        image: PathBuf,
+    },
+    /// A relight names a colour that is not an emitter of the level.
+    #[error("{color} {}; level {level}'s emitters are: {}", if *.wall { "is a wall, not an emitter, in this level (relight changes emitters only; make it an emitter in the palette and bake again)" } else { "is not an emitter of this level" }, if .emitters.is_empty() { "none".to_string() } else { .emitters.join(", ") })]
+    NotAnEmitter {
+        /// The colour, `#rrggbb`.
+        color: String,
+        /// True when the colour is a wall of the level.
+        wall: bool,
+        /// The level's name.
+        level: String,
+        /// The level's emitter colours.
+        emitters: Vec<String>,
+    },
+}
+
 /// What a cache holds.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Cache {
+    /// The level's name.
     pub level: String,
+    /// Width in pixels.
     pub width: usize,
+    /// Height in pixels.
     pub height: usize,
     /// Per pixel: 0 void, 1 floor, `2 + m` solid of material `m`.
     pub cells: Vec<u32>,
+    /// Linear floor albedo per pixel.
     pub albedo: Vec<[f32; 3]>,
+    /// The level's materials, as resolved from its palette.
     pub materials: Vec<Material>,
     /// blake3 of the level image file's bytes, hex.
     pub image_hash: String,
@@ -52,8 +128,11 @@ pub struct Cache {
     pub report: Report,
     /// Output encoding of that bake.
     pub exposure: f64,
+    /// PNG outputs at 16 bits per channel.
     pub depth16: bool,
+    /// The RGBM lightmap was written too.
     pub rgbm: bool,
+    /// The per-emitter light the relight weights.
     pub responses: Responses,
 }
 
@@ -115,8 +194,8 @@ impl Cache {
     }
 
     /// Serialises with header and checksum.
-    pub fn to_bytes(&self) -> Result<Vec<u8>, String> {
-        let payload = postcard::to_allocvec(self).map_err(|e| e.to_string())?;
+    pub fn to_bytes(&self) -> Result<Vec<u8>, postcard::Error> {
+        let payload = postcard::to_allocvec(self)?;
         let mut out = Vec::with_capacity(payload.len() + 64);
         out.extend_from_slice(MAGIC);
         out.extend_from_slice(&FORMAT.to_le_bytes());
@@ -127,15 +206,16 @@ impl Cache {
         Ok(out)
     }
 
-    /// Reads a cache; `name` is how the file is called in messages.
-    pub fn from_bytes(bytes: &[u8], name: &str) -> Result<Cache, String> {
+    /// Reads a cache; `path` is how the file is called in messages.
+    pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<Cache, CacheError> {
         let Some(rest) = bytes.strip_prefix(MAGIC.as_slice()) else {
-            return Err(format!(
-                "{name} is not a flatbake cache (write one with `flatbake bake --cache`)"
-            ));
+            return Err(CacheError::NotACache {
+                path: path.to_path_buf(),
+            });
         };
-        let damaged = |why: &str| {
-            format!("{name} is a damaged flatbake cache ({why}): bake the level again with --cache")
+        let damaged = |why: &str| CacheError::Damaged {
+            path: path.to_path_buf(),
+            why: why.to_string(),
         };
         let u32_at = |b: &[u8], i: usize| -> Option<u32> {
             Some(u32::from_le_bytes(b.get(i..i + 4)?.try_into().ok()?))
@@ -148,9 +228,11 @@ impl Cache {
             .and_then(|v| std::str::from_utf8(v).ok())
             .ok_or_else(|| damaged("unreadable version"))?;
         if format != FORMAT || version != VERSION {
-            return Err(format!(
-                "{name} was written by flatbake {version} (cache format {format}); this is flatbake {VERSION} (format {FORMAT}): bake the level again with --cache"
-            ));
+            return Err(CacheError::OtherVersion {
+                path: path.to_path_buf(),
+                version: version.to_string(),
+                format,
+            });
         }
         let rest = &rest[8 + vlen..];
         let (hash, payload) = (
@@ -185,16 +267,21 @@ impl Cache {
     }
 
     /// Reads a cache file.
-    pub fn read(path: &Path) -> Result<Cache, String> {
-        let bytes =
-            std::fs::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-        Cache::from_bytes(&bytes, &path.display().to_string())
+    pub fn read(path: &Path) -> Result<Cache, CacheError> {
+        let bytes = std::fs::read(path).map_err(|source| CacheError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Cache::from_bytes(&bytes, path)
     }
 
     /// The emission per emitter (in [`Responses::emitters`] order): the
     /// palette's, with `overrides` (colour, emission) applied. A colour that is
     /// not an emitter of this level is refused with a message naming it.
-    pub fn emission(&self, overrides: &[([u8; 3], [f64; 3])]) -> Result<Vec<[f64; 3]>, String> {
+    pub fn emission(
+        &self,
+        overrides: &[([u8; 3], [f64; 3])],
+    ) -> Result<Vec<[f64; 3]>, CacheError> {
         let r = &self.responses;
         let mut e: Vec<[f64; 3]> = r
             .emitters
@@ -209,153 +296,24 @@ impl Cache {
             {
                 Some(i) => e[i] = *value,
                 None => {
-                    let known: Vec<String> = r
-                        .emitters
-                        .iter()
-                        .map(|&m| self.materials[m].hex())
-                        .collect();
-                    let what = match self.materials.iter().find(|m| m.color == *color) {
-                        Some(m) if m.kind == MaterialKind::Wall => {
-                            "is a wall, not an emitter, in this level (relight changes emitters only; make it an emitter in the palette and bake again)"
-                        }
-                        _ => "is not an emitter of this level",
-                    };
-                    return Err(format!(
-                        "{} {what}; level {}'s emitters are: {}",
-                        hex_color(*color),
-                        self.level,
-                        if known.is_empty() {
-                            "none".to_string()
-                        } else {
-                            known.join(", ")
-                        }
-                    ));
+                    return Err(CacheError::NotAnEmitter {
+                        color: hex_color(*color),
+                        wall: self
+                            .materials
+                            .iter()
+                            .any(|m| m.color == *color && m.kind == MaterialKind::Wall),
+                        level: self.level.clone(),
+                        emitters: r
+                            .emitters
+                            .iter()
+                            .map(|&m| self.materials[m].hex())
+                            .collect(),
+                    });
                 }
             }
         }
         Ok(e)
     }
-}
-
-/// Parses `--emission "#rrggbb=R,G,B"` (or `=X` for grey).
-pub fn parse_emission(s: &str) -> Result<([u8; 3], [f64; 3]), String> {
-    let (c, v) = s.split_once('=').ok_or_else(|| {
-        format!("--emission takes COLOR=R,G,B (like \"#fffadc=10,9,7\"), not {s:?}")
-    })?;
-    let color = crate::level::palette::parse_hex(c.trim())
-        .ok_or_else(|| format!("--emission: {c:?} is not a colour like #fffadc"))?;
-    let nums: Vec<f64> = v
-        .split(',')
-        .map(|x| x.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| format!("--emission: {v:?} is not a number or R,G,B"))?;
-    let e = match nums.as_slice() {
-        [x] => [*x; 3],
-        [r, g, b] => [*r, *g, *b],
-        _ => return Err(format!("--emission: {v:?} needs 1 or 3 numbers")),
-    };
-    if e.iter().any(|x| !x.is_finite() || *x < 0.0) {
-        return Err(format!(
-            "--emission: emission must be finite and >= 0, not {v:?}"
-        ));
-    }
-    Ok((color, e))
-}
-
-/// What `relight` should write.
-#[derive(Clone, Debug, Default)]
-pub struct RelightOptions {
-    pub out_dir: PathBuf,
-    /// New emission per colour; other emitters keep the palette's.
-    pub emission: Vec<([u8; 3], [f64; 3])>,
-    /// Refuse the cache unless it was baked from this image file.
-    pub level_image: Option<PathBuf>,
-    /// Also write the light layers with the new emission.
-    pub layers: bool,
-    /// Also write the EXR lightmap.
-    pub hdr: bool,
-}
-
-/// Relights a cache; returns the report written (`NAME.report.json`).
-pub fn relight(cache_path: &Path, opts: &RelightOptions) -> Result<Report, String> {
-    let t0 = Instant::now();
-    let cache = Cache::read(cache_path)?;
-    if let Some(img) = &opts.level_image {
-        let bytes =
-            std::fs::read(img).map_err(|e| format!("cannot read {}: {e}", img.display()))?;
-        if blake3::hash(&bytes).to_hex().as_str() != cache.image_hash {
-            return Err(format!(
-                "{} was baked from another image than {} (or the image changed since): bake it again with --cache",
-                cache_path.display(),
-                img.display()
-            ));
-        }
-    }
-    let emission = cache.emission(&opts.emission)?;
-    let level = cache.level();
-    let load = t0.elapsed().as_secs_f64();
-    let t = Instant::now();
-    let map = Lightmap {
-        width: level.width,
-        height: level.height,
-        rgb: cache.responses.combine(&emission),
-    };
-    let gather = t.elapsed().as_secs_f64();
-
-    let mut report = cache.report.clone();
-    report.timings = Timings {
-        load,
-        gather,
-        total: t0.elapsed().as_secs_f64(),
-        ..Timings::default()
-    };
-    report.solves = 0;
-    report.residual = 0.0;
-    report.solver = "relight".into();
-    report.energy = Energy::default();
-    report.skipped = vec![Skip {
-        effect: "geometry, form factors, solve, gather".into(),
-        reason: format!(
-            "relit from {}: a weighted sum of the cached per-emitter light",
-            cache_path
-                .file_name()
-                .map_or_else(String::new, |n| n.to_string_lossy().into_owned())
-        ),
-    }];
-    report
-        .warnings
-        .push("relit: the energy balance is not recomputed (all 0); bake for it".into());
-    let out_opts = OutputOptions {
-        exposure: cache.exposure,
-        depth: if cache.depth16 {
-            Depth::Sixteen
-        } else {
-            Depth::Eight
-        },
-        hdr: opts.hdr || opts.layers,
-        rgbm: cache.rgbm,
-    };
-    output::ensure_output_dir(&opts.out_dir).map_err(|e| e.to_string())?;
-    let mut written = output::write_level_outputs(&opts.out_dir, &level, &map, &report, &out_opts)
-        .map_err(|e| e.to_string())?;
-    if opts.layers {
-        written.extend(
-            crate::output::layers::write_layers(
-                &opts.out_dir,
-                &level,
-                &cache.responses,
-                &emission,
-                &out_opts,
-            )
-            .map_err(|e| e.to_string())?,
-        );
-    }
-    report.outputs = written
-        .iter()
-        .filter_map(|p| p.file_name())
-        .map(|n| n.to_string_lossy().into_owned())
-        .collect();
-    Ok(report)
 }
 
 #[cfg(test)]
@@ -407,7 +365,7 @@ mod tests {
     #[test]
     fn a_cache_reads_back_and_relights_linearly() {
         let bytes = tiny().to_bytes().expect("encodes");
-        let c = Cache::from_bytes(&bytes, "t").expect("reads");
+        let c = Cache::from_bytes(&bytes, Path::new("t")).expect("reads");
         let e = c
             .emission(&[([255, 255, 255], [4.0, 0.0, 1.0])])
             .expect("emitter");
@@ -416,7 +374,7 @@ mod tests {
             vec![[1.0, 0.0, 0.25], [4.0, 0.0, 1.0]]
         );
         let err = c.emission(&[([1, 2, 3], [1.0; 3])]).expect_err("a wall");
-        assert!(err.contains("#010203 is a wall"), "{err}");
+        assert!(err.to_string().contains("#010203 is a wall"), "{err}");
     }
 
     #[test]
@@ -430,26 +388,8 @@ mod tests {
         ] {
             let mut c = tiny();
             broken(&mut c);
-            let err = Cache::from_bytes(&c.to_bytes().expect("encodes"), "t").expect_err("refused");
-            assert!(err.contains("damaged"), "{err}");
-        }
-    }
-
-    #[test]
-    fn emission_arguments_parse_or_say_why_not() {
-        assert_eq!(
-            parse_emission("#fffadc=10,9,7"),
-            Ok(([255, 250, 220], [10.0, 9.0, 7.0]))
-        );
-        assert_eq!(parse_emission("#000001=2"), Ok(([0, 0, 1], [2.0; 3])));
-        for bad in [
-            "#fffadc",
-            "fffadc=1",
-            "#fffadc=1,2",
-            "#fffadc=-1",
-            "#fffadc=x",
-        ] {
-            assert!(parse_emission(bad).is_err(), "{bad}");
+            let err = Cache::from_bytes(&c.to_bytes().expect("encodes"), Path::new("t")).expect_err("refused");
+            assert!(err.to_string().contains("damaged"), "{err}");
         }
     }
 }

@@ -6,22 +6,22 @@
 //! and the layers add up to the full lightmap. A group is the palette's
 //! `group = "NAME"` of an emitter, or the emitter's colour when it has none.
 
-use std::path::{Path, PathBuf};
-
 use serde::{Deserialize, Serialize};
 
 use crate::bake::Lightmap;
 use crate::bake::Responses;
 use crate::level::Level;
-use crate::output::{self, OutputError, OutputKind, OutputOptions};
+use crate::output::{self, Encoded, OutputError, OutputKind, OutputOptions};
 
 /// One light group: the emitters (positions in [`Responses::emitters`]) that
 /// switch together.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Group {
+    /// The group's name: the palette's `group`, or the emitter's colour.
     pub name: String,
     /// File-name-safe spelling of `name`, unique within the level.
     pub file_tag: String,
+    /// Positions in [`Responses::emitters`] of the group's emitters.
     pub emitters: Vec<usize>,
 }
 
@@ -92,19 +92,24 @@ pub fn layer(r: &Responses, emission: &[[f64; 3]], group: &Group) -> Lightmap {
 /// `NAME.layers.json`: what a game needs to load and combine the layers.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct Manifest {
+    /// The level's name.
     pub level: String,
+    /// Width and height in pixels.
     pub size: [usize; 2],
     /// The full lightmap the layers add up to.
     pub lightmap_exr: String,
+    /// The full lightmap's sRGB preview.
     pub lightmap_png: String,
     /// How the layers combine (for people reading the file).
     pub combine: String,
+    /// The groups, in palette order.
     pub groups: Vec<ManifestGroup>,
 }
 
 /// One group in the manifest.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct ManifestGroup {
+    /// The group's name.
     pub name: String,
     /// Linear emission of the group's emitters as baked into the layer.
     pub emitters: Vec<ManifestEmitter>,
@@ -117,30 +122,27 @@ pub struct ManifestGroup {
 /// An emitter colour of a group and its emission.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct ManifestEmitter {
+    /// The emitter's colour, `#rrggbb`.
     pub color: String,
+    /// Its linear emission per channel, as baked into the layer.
     pub emission: [f64; 3],
 }
 
-/// File name of a group's layer: `NAME.layer-TAG.exr` or `.png`.
-pub fn layer_file(level: &str, tag: &str, ext: &str) -> String {
-    format!("{level}.layer-{tag}.{ext}")
-}
-
-/// Writes every layer (EXR and PNG) of `level` with `emission` per emitter,
-/// then `NAME.layers.json`; returns the paths written, manifest last.
-pub fn write_layers(
-    dir: &Path,
+/// Encodes every layer (EXR and PNG) of `level` with `emission` per
+/// emitter, then `NAME.layers.json`, in writing order (manifest last).
+pub fn encode_layers(
     level: &Level,
     r: &Responses,
     emission: &[[f64; 3]],
     opts: &OutputOptions,
-) -> Result<Vec<PathBuf>, OutputError> {
-    let mut written = Vec::new();
+) -> Result<Vec<Encoded>, OutputError> {
+    let name = &level.name;
+    let mut files = Vec::new();
     let mut manifest = Manifest {
-        level: level.name.clone(),
+        level: name.clone(),
         size: [level.width, level.height],
-        lightmap_exr: OutputKind::Hdr.file_name(&level.name),
-        lightmap_png: OutputKind::Lightmap.file_name(&level.name),
+        lightmap_exr: OutputKind::Hdr.file_name(name),
+        lightmap_png: OutputKind::Lightmap.file_name(name),
         combine: "lightmap = sum over groups of scale_g * layer_g (linear values, from the EXRs); \
                   scale 1 reproduces the bake"
             .into(),
@@ -148,27 +150,21 @@ pub fn write_layers(
     };
     for g in groups(level, r) {
         let map = layer(r, emission, &g);
-        let exr_name = layer_file(&level.name, &g.file_tag, "exr");
-        let png_name = layer_file(&level.name, &g.file_tag, "png");
-        let exr_path = dir.join(&exr_name);
+        let exr_kind = OutputKind::LayerExr(g.file_tag.clone());
+        let png_kind = OutputKind::LayerPng(g.file_tag.clone());
         let hdr = output::hdr_pixels(level, &map)?;
         let exr =
             output::encode_exr_rgb32f(level.width, level.height, &hdr).map_err(|message| {
                 OutputError::Encode {
-                    path: exr_path.clone(),
+                    path: exr_kind.file_name(name).into(),
                     message,
                 }
             })?;
-        output::write_file_atomic(&exr_path, &exr)?;
-        written.push(exr_path);
-        let png_path = dir.join(&png_name);
         let img = output::lightmap_image(level, &map, opts)?;
         let png = output::encode_png(&img).map_err(|e| OutputError::Encode {
-            path: png_path.clone(),
+            path: png_kind.file_name(name).into(),
             message: e.to_string(),
         })?;
-        output::write_file_atomic(&png_path, &png)?;
-        written.push(png_path);
         manifest.groups.push(ManifestGroup {
             name: g.name.clone(),
             emitters: g
@@ -182,17 +178,24 @@ pub fn write_layers(
                     emission: emission.get(i).copied().unwrap_or([0.0; 3]),
                 })
                 .collect(),
-            exr: exr_name,
-            png: png_name,
+            exr: exr_kind.file_name(name),
+            png: png_kind.file_name(name),
+        });
+        files.push(Encoded {
+            kind: exr_kind,
+            bytes: exr,
+        });
+        files.push(Encoded {
+            kind: png_kind,
+            bytes: png,
         });
     }
-    let path = dir.join(format!("{}.layers.json", level.name));
+    let kind = OutputKind::LayersManifest;
     let mut json = serde_json::to_vec_pretty(&manifest).map_err(|e| OutputError::Encode {
-        path: path.clone(),
+        path: kind.file_name(name).into(),
         message: e.to_string(),
     })?;
     json.push(b'\n');
-    output::write_file_atomic(&path, &json)?;
-    written.push(path);
-    Ok(written)
+    files.push(Encoded { kind, bytes: json });
+    Ok(files)
 }

@@ -1,0 +1,91 @@
+//! OpenEXR: the HDR lightmap and layers as linear 32-bit float RGB, written
+//! by our own encoder so that the bytes depend only on the pixels, and read
+//! back through `image`.
+
+use std::path::Path;
+
+use super::OutputError;
+use super::files::describe_io;
+
+/// Bytes of a single-part, scan-line, uncompressed OpenEXR file holding
+/// `rgb` (row-major, `width * height`) as 32-bit float R, G, B channels.
+///
+/// Written by hand rather than through `image`'s encoder because that one
+/// compresses tiles in parallel and writes them in completion order, so the
+/// same lightmap could give different bytes from run to run.
+pub fn encode_exr_rgb32f(width: usize, height: usize, rgb: &[[f32; 3]]) -> Result<Vec<u8>, String> {
+    let (w, h) = match (i32::try_from(width), i32::try_from(height)) {
+        (Ok(w), Ok(h)) if w > 0 && h > 0 => (w, h),
+        _ => return Err(format!("an EXR image cannot be {width}x{height} pixels")),
+    };
+    if rgb.len() != width * height {
+        return Err(format!(
+            "{} pixels given for a {width}x{height} image",
+            rgb.len()
+        ));
+    }
+    fn attr(out: &mut Vec<u8>, name: &str, kind: &str, value: &[u8]) {
+        out.extend_from_slice(name.as_bytes());
+        out.push(0);
+        out.extend_from_slice(kind.as_bytes());
+        out.push(0);
+        out.extend_from_slice(&(value.len() as i32).to_le_bytes());
+        out.extend_from_slice(value);
+    }
+    let le = |v: &[i32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+    let line_bytes = width * 3 * 4;
+    let mut out = Vec::with_capacity(400 + height * (16 + line_bytes));
+    out.extend_from_slice(&20000630i32.to_le_bytes()); // magic number
+    out.extend_from_slice(&[2, 0, 0, 0]); // version 2, single-part scan lines
+    // Channels are listed, and stored in each line, in alphabetical order.
+    let mut chlist = Vec::new();
+    for name in ["B", "G", "R"] {
+        chlist.extend_from_slice(name.as_bytes());
+        chlist.push(0);
+        chlist.extend_from_slice(&2i32.to_le_bytes()); // FLOAT
+        chlist.extend_from_slice(&[0, 0, 0, 0]); // pLinear, reserved
+        chlist.extend_from_slice(&le(&[1, 1])); // x and y sampling
+    }
+    chlist.push(0);
+    attr(&mut out, "channels", "chlist", &chlist);
+    attr(&mut out, "compression", "compression", &[0]); // none
+    let window = le(&[0, 0, w - 1, h - 1]);
+    attr(&mut out, "dataWindow", "box2i", &window);
+    attr(&mut out, "displayWindow", "box2i", &window);
+    attr(&mut out, "lineOrder", "lineOrder", &[0]); // increasing y
+    attr(&mut out, "pixelAspectRatio", "float", &1f32.to_le_bytes());
+    attr(&mut out, "screenWindowCenter", "v2f", &[0; 8]);
+    attr(&mut out, "screenWindowWidth", "float", &1f32.to_le_bytes());
+    out.push(0); // end of header
+    // Offset table: one chunk per scan line, each 8 bytes of header + data.
+    let first = (out.len() + height * 8) as u64;
+    for y in 0..height as u64 {
+        out.extend_from_slice(&(first + y * (8 + line_bytes as u64)).to_le_bytes());
+    }
+    for (y, row) in rgb.chunks_exact(width).enumerate() {
+        out.extend_from_slice(&(y as i32).to_le_bytes());
+        out.extend_from_slice(&(line_bytes as i32).to_le_bytes());
+        for k in [2, 1, 0] {
+            for p in row {
+                out.extend_from_slice(&p[k].to_le_bytes());
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Reads an HDR lightmap (any RGB or RGBA float EXR) back: width, height and
+/// row-major linear RGB.
+pub fn read_lightmap_exr(path: &Path) -> Result<(usize, usize, Vec<[f32; 3]>), OutputError> {
+    let read = |message: String| OutputError::Read {
+        path: path.to_path_buf(),
+        message,
+    };
+    let bytes = std::fs::read(path).map_err(|e| read(describe_io(&e)))?;
+    let img = image::load_from_memory_with_format(&bytes, image::ImageFormat::OpenExr)
+        .map_err(|e| read(format!("not a readable EXR image ({e})")))?
+        .into_rgb32f();
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    Ok((w, h, img.pixels().map(|p| p.0).collect()))
+}
+

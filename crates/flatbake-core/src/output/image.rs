@@ -1,0 +1,220 @@
+//! Pixels to image bytes: linear light to sRGB codes (8 or 16 bits), the
+//! RGBM encoding, the lightmap and lit images of a level, and PNG bytes.
+
+use image::codecs::png::PngEncoder;
+use image::{DynamicImage, ImageBuffer, Rgba, RgbaImage};
+
+use super::{Depth, OutputError, OutputOptions};
+use crate::bake::Lightmap;
+use crate::level::material::linear_to_srgb;
+use crate::level::{Cell, Level};
+
+/// Range of the RGBM encoding: the largest linear value it can hold.
+///
+/// RGBM convention (8 bits per channel, all channels linear, no sRGB curve):
+/// `M = ceil(255 * clamp(max(r, g, b) / RGBM_RANGE, 1/255, 1)) / 255` is
+/// stored in alpha, and each colour channel stores
+/// `round(255 * min(1, c / (M * RGBM_RANGE))) / 255`. A shader decodes with
+/// `rgb * a * RGBM_RANGE` (texture sampled as linear, alpha not
+/// premultiplied). Rounding M up keeps the brightest channel at or below 1,
+/// so values up to `RGBM_RANGE` survive; larger values clamp to it.
+pub const RGBM_RANGE: f32 = 6.0;
+
+/// A linear value that can be encoded: non-finite and negative become 0.
+fn clean(v: f32) -> f64 {
+    if v.is_finite() && v > 0.0 {
+        v as f64
+    } else {
+        0.0
+    }
+}
+
+/// Linear value to an 8-bit sRGB code, clamped, rounded to nearest; NaN is 0.
+pub fn srgb8(v: f64) -> u8 {
+    (linear_to_srgb(v) * 255.0).round() as u8
+}
+
+/// Linear value to a 16-bit sRGB code, clamped, rounded to nearest; NaN is 0.
+pub fn srgb16(v: f64) -> u16 {
+    (linear_to_srgb(v) * 65535.0).round() as u16
+}
+
+/// Encodes linear RGB as RGBM (see [`RGBM_RANGE`] for the convention).
+/// Non-finite and negative channels encode as 0.
+pub fn rgbm_encode(rgb: [f32; 3]) -> [u8; 4] {
+    let c = rgb.map(clean);
+    let max = c[0].max(c[1]).max(c[2]);
+    let range = RGBM_RANGE as f64;
+    let m = (max / range * 255.0).ceil().clamp(1.0, 255.0);
+    let scale = m / 255.0 * range;
+    let q = c.map(|v| ((v / scale).min(1.0) * 255.0).round() as u8);
+    [q[0], q[1], q[2], m as u8]
+}
+
+/// Decodes an RGBM pixel to linear RGB: `rgb * a * RGBM_RANGE`.
+pub fn rgbm_decode(p: [u8; 4]) -> [f32; 3] {
+    let m = p[3] as f32 / 255.0 * RGBM_RANGE;
+    [p[0], p[1], p[2]].map(|c| c as f32 / 255.0 * m)
+}
+
+/// Rejects a level and lightmap that do not describe the same pixels, or no
+/// pixels at all (no image format can hold a 0-pixel image).
+pub(crate) fn check_sizes(level: &Level, map: &Lightmap) -> Result<(), OutputError> {
+    let invalid = |message: String| OutputError::Invalid {
+        level: level.name.clone(),
+        message,
+    };
+    let (w, h) = (level.width, level.height);
+    if w == 0 || h == 0 {
+        return Err(invalid(format!(
+            "the level is {w}x{h} pixels, there is nothing to write"
+        )));
+    }
+    if u32::try_from(w).is_err() || u32::try_from(h).is_err() {
+        return Err(invalid(format!(
+            "the level is {w}x{h} pixels, too large for an image"
+        )));
+    }
+    if map.width != w || map.height != h {
+        return Err(invalid(format!(
+            "the lightmap is {}x{} pixels but the level is {w}x{h}",
+            map.width, map.height
+        )));
+    }
+    let n = w * h;
+    if level.cells.len() != n || level.albedo.len() != n || map.rgb.len() != n {
+        return Err(invalid(format!(
+            "expected {n} pixels, got {} cells, {} albedos and {} lightmap values",
+            level.cells.len(),
+            level.albedo.len(),
+            map.rgb.len()
+        )));
+    }
+    Ok(())
+}
+
+/// The linear, exposed colour of pixel `i` in the lightmap (`lit == false`)
+/// or lit image, or `None` on void.
+fn sdr_linear(
+    level: &Level,
+    map: &Lightmap,
+    i: usize,
+    exposure: f64,
+    lit: bool,
+) -> Option<[f64; 3]> {
+    let v = map.rgb[i].map(clean);
+    match level.cells[i] {
+        Cell::Void => None,
+        Cell::Floor if lit => {
+            let a = level.albedo[i].map(clean);
+            Some([0, 1, 2].map(|k| a[k] * v[k] * exposure))
+        }
+        // Solid pixels show their own radiosity in both images: emitters glow.
+        Cell::Floor | Cell::Solid(_) => Some(v.map(|c| c * exposure)),
+    }
+}
+
+/// The lightmap (`lit == false`) or lit image at the chosen depth.
+pub(crate) fn sdr_image(level: &Level, map: &Lightmap, opts: &OutputOptions, lit: bool) -> DynamicImage {
+    let (w, h) = (level.width as u32, level.height as u32);
+    let px = |x: u32, y: u32| {
+        sdr_linear(
+            level,
+            map,
+            y as usize * level.width + x as usize,
+            opts.exposure,
+            lit,
+        )
+    };
+    match opts.depth {
+        Depth::Eight => {
+            DynamicImage::ImageRgba8(ImageBuffer::from_fn(w, h, |x, y| match px(x, y) {
+                Some(c) => Rgba([srgb8(c[0]), srgb8(c[1]), srgb8(c[2]), u8::MAX]),
+                None => Rgba([0; 4]),
+            }))
+        }
+        Depth::Sixteen => {
+            DynamicImage::ImageRgba16(ImageBuffer::from_fn(w, h, |x, y| match px(x, y) {
+                Some(c) => Rgba([srgb16(c[0]), srgb16(c[1]), srgb16(c[2]), u16::MAX]),
+                None => Rgba([0; 4]),
+            }))
+        }
+    }
+}
+
+/// `NAME.lightmap.png` in memory: I(p) x exposure, sRGB, void transparent.
+pub fn lightmap_image(
+    level: &Level,
+    map: &Lightmap,
+    opts: &OutputOptions,
+) -> Result<DynamicImage, OutputError> {
+    check_sizes(level, map)?;
+    Ok(sdr_image(level, map, opts, false))
+}
+
+/// `NAME.lit.png` in memory: albedo x I(p) x exposure on floor, the
+/// lightmap's value on solid pixels, sRGB, void transparent.
+pub fn lit_image(
+    level: &Level,
+    map: &Lightmap,
+    opts: &OutputOptions,
+) -> Result<DynamicImage, OutputError> {
+    check_sizes(level, map)?;
+    Ok(sdr_image(level, map, opts, true))
+}
+
+/// The linear HDR lightmap: I(p) on floor pixels, unscaled by exposure and
+/// unclamped above; 0 on solid and void pixels (SPEC section 5), and 0 where
+/// the solve produced a negative or non-finite value (light is never
+/// negative). Row-major.
+pub fn hdr_pixels(level: &Level, map: &Lightmap) -> Result<Vec<[f32; 3]>, OutputError> {
+    check_sizes(level, map)?;
+    Ok(level
+        .cells
+        .iter()
+        .zip(&map.rgb)
+        .map(|(c, v)| {
+            if *c == Cell::Floor {
+                v.map(|x| clean(x) as f32)
+            } else {
+                [0.0; 3]
+            }
+        })
+        .collect())
+}
+
+/// `NAME.lightmap.rgbm.png` in memory: [`hdr_pixels`] encoded with
+/// [`rgbm_encode`] (so solid and void pixels decode to 0, as in the EXR).
+pub fn rgbm_image(level: &Level, map: &Lightmap) -> Result<RgbaImage, OutputError> {
+    let hdr = hdr_pixels(level, map)?;
+    let w = level.width;
+    Ok(ImageBuffer::from_fn(
+        level.width as u32,
+        level.height as u32,
+        |x, y| Rgba(rgbm_encode(hdr[y as usize * w + x as usize])),
+    ))
+}
+
+/// PNG bytes of any image (8 or 16 bits per channel, as the image holds).
+pub fn encode_png(img: &DynamicImage) -> Result<Vec<u8>, image::ImageError> {
+    let mut bytes = Vec::new();
+    img.write_with_encoder(PngEncoder::new(&mut bytes))?;
+    Ok(bytes)
+}
+
+/// PNG bytes of an 8-bit RGBA image.
+pub fn encode_png_rgba8(img: &RgbaImage) -> Result<Vec<u8>, image::ImageError> {
+    let mut bytes = Vec::new();
+    img.write_with_encoder(PngEncoder::new(&mut bytes))?;
+    Ok(bytes)
+}
+
+/// PNG bytes of a 16-bit RGBA image.
+pub fn encode_png_rgba16(
+    img: &ImageBuffer<Rgba<u16>, Vec<u16>>,
+) -> Result<Vec<u8>, image::ImageError> {
+    let mut bytes = Vec::new();
+    img.write_with_encoder(PngEncoder::new(&mut bytes))?;
+    Ok(bytes)
+}
+

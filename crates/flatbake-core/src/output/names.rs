@@ -1,0 +1,77 @@
+//! Every file name flatbake writes or recognises, in one place: a level's
+//! outputs are named `NAME.SUFFIX` after the level image's file stem, and
+//! nothing else in the crate spells a suffix.
+
+use std::path::Path;
+
+/// Prefix of the temporary files that writes go through (hidden, and
+/// recognisable as flatbake's own when a killed process leaves one behind).
+pub const TEMP_PREFIX: &str = ".flatbake-";
+/// Suffix of the temporary files that writes go through.
+pub const TEMP_SUFFIX: &str = ".tmp";
+
+/// The name a level's outputs are written under: its image's file stem
+/// (`levels/cave.png` is `cave`).
+pub fn level_name(image: &Path) -> String {
+    image
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
+
+/// True when a file name is one of flatbake's own image outputs (so a
+/// folder of levels baked into itself does not take them for levels).
+pub fn is_output_image(file_name: &str) -> bool {
+    [".lightmap.", ".lit.", ".layer-", ".rgbm."]
+        .iter()
+        .any(|s| file_name.contains(s))
+}
+
+/// The files flatbake writes for one level.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum OutputKind {
+    /// `NAME.lightmap.png`
+    Lightmap,
+    /// `NAME.lit.png`
+    Lit,
+    /// `NAME.lightmap.exr`
+    Hdr,
+    /// `NAME.lightmap.rgbm.png`
+    Rgbm,
+    /// `NAME.report.json`
+    Report,
+    /// `NAME.stamp.json`: what the outputs were made from (incremental bakes).
+    Stamp,
+    /// `NAME.flatbake`: the relight cache.
+    Cache,
+    /// `NAME.layers.json`: the light layers' manifest.
+    LayersManifest,
+    /// `NAME.layer-TAG.exr`: one light group's linear layer.
+    LayerExr(String),
+    /// `NAME.layer-TAG.png`: one light group's sRGB preview.
+    LayerPng(String),
+}
+
+impl OutputKind {
+    /// The file name suffix, after `NAME.`.
+    pub fn suffix(&self) -> String {
+        match self {
+            OutputKind::Lightmap => "lightmap.png".into(),
+            OutputKind::Lit => "lit.png".into(),
+            OutputKind::Hdr => "lightmap.exr".into(),
+            OutputKind::Rgbm => "lightmap.rgbm.png".into(),
+            OutputKind::Report => "report.json".into(),
+            OutputKind::Stamp => "stamp.json".into(),
+            OutputKind::Cache => "flatbake".into(),
+            OutputKind::LayersManifest => "layers.json".into(),
+            OutputKind::LayerExr(tag) => format!("layer-{tag}.exr"),
+            OutputKind::LayerPng(tag) => format!("layer-{tag}.png"),
+        }
+    }
+
+    /// The file name of this output for level `name`.
+    pub fn file_name(&self, name: &str) -> String {
+        format!("{name}.{}", self.suffix())
+    }
+}
+
