@@ -242,12 +242,12 @@ fn culled_same_as_all(
     let all: Vec<u32> = (0..g.edges.len() as u32).collect();
     let got: Vec<std::sync::Mutex<Vec<Span>>> =
         (0..pos.len()).map(|_| Default::default()).collect();
-    flatbake_core::transport::for_each_visibility(
+    flatbake_core::visibility::for_each_visibility(
         g,
         pos,
         pixels,
         view,
-        &flatbake_core::transport::kernel::Reach::unlimited(g.edges.len()),
+        f64::INFINITY,
         None,
         &|i, spans: &[Span]| {
             *got[i].lock().unwrap() = spans.to_vec();

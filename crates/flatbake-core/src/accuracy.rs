@@ -14,9 +14,9 @@ use std::time::Instant;
 
 use crate::bake::report::Timings;
 use crate::bake::{self, Settings};
+use crate::error::{Error, Result};
 use crate::level::palette::Palette;
 use crate::level::{self, Cell, Level, LoadLimits};
-use crate::error::{Error, Result};
 use crate::output::write_file_atomic;
 use crate::quality::{Knobs, Quality};
 

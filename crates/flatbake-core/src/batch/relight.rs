@@ -117,8 +117,7 @@ pub fn relight(cache_path: &Path, opts: &RelightOptions) -> Result<Report> {
     output::ensure_output_dir(&opts.out_dir)?;
     let mut written = output::write_level_outputs(&opts.out_dir, &level, &map, &report, &out_opts)?;
     if opts.layers {
-        let layers =
-            output::layers::encode_layers(&level, &cache.responses, &emission, &out_opts)?;
+        let layers = output::layers::encode_layers(&level, &cache.responses, &emission, &out_opts)?;
         written.extend(output::write_files(&opts.out_dir, &level.name, &layers)?);
     }
     report.outputs = written

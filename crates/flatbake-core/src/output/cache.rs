@@ -278,10 +278,7 @@ impl Cache {
     /// The emission per emitter (in [`Responses::emitters`] order): the
     /// palette's, with `overrides` (colour, emission) applied. A colour that is
     /// not an emitter of this level is refused with a message naming it.
-    pub fn emission(
-        &self,
-        overrides: &[([u8; 3], [f64; 3])],
-    ) -> Result<Vec<[f64; 3]>, CacheError> {
+    pub fn emission(&self, overrides: &[([u8; 3], [f64; 3])]) -> Result<Vec<[f64; 3]>, CacheError> {
         let r = &self.responses;
         let mut e: Vec<[f64; 3]> = r
             .emitters
@@ -388,7 +385,8 @@ mod tests {
         ] {
             let mut c = tiny();
             broken(&mut c);
-            let err = Cache::from_bytes(&c.to_bytes().expect("encodes"), Path::new("t")).expect_err("refused");
+            let err = Cache::from_bytes(&c.to_bytes().expect("encodes"), Path::new("t"))
+                .expect_err("refused");
             assert!(err.to_string().contains("damaged"), "{err}");
         }
     }

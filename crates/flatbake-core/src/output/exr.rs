@@ -88,4 +88,3 @@ pub fn read_lightmap_exr(path: &Path) -> Result<(usize, usize, Vec<[f32; 3]>), O
     let (w, h) = (img.width() as usize, img.height() as usize);
     Ok((w, h, img.pixels().map(|p| p.0).collect()))
 }
-

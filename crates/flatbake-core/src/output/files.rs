@@ -250,4 +250,3 @@ pub fn write_file_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
         }
     })
 }
-

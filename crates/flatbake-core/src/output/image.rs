@@ -115,7 +115,12 @@ fn sdr_linear(
 }
 
 /// The lightmap (`lit == false`) or lit image at the chosen depth.
-pub(crate) fn sdr_image(level: &Level, map: &Lightmap, opts: &OutputOptions, lit: bool) -> DynamicImage {
+pub(crate) fn sdr_image(
+    level: &Level,
+    map: &Lightmap,
+    opts: &OutputOptions,
+    lit: bool,
+) -> DynamicImage {
     let (w, h) = (level.width as u32, level.height as u32);
     let px = |x: u32, y: u32| {
         sdr_linear(
@@ -217,4 +222,3 @@ pub fn encode_png_rgba16(
     img.write_with_encoder(PngEncoder::new(&mut bytes))?;
     Ok(bytes)
 }
-

@@ -74,4 +74,3 @@ impl OutputKind {
         format!("{name}.{}", self.suffix())
     }
 }
-

@@ -16,9 +16,9 @@
 use nalgebra::{DMatrix, DVector};
 
 use crate::geometry::Geometry;
+use crate::transport::Patches;
 use crate::transport::kernel::Falloff;
-use crate::transport::{Patches, for_each_visibility};
-use crate::visibility::{View, diamond};
+use crate::visibility::{View, diamond, for_each_visibility};
 
 /// Sample segments per patch pair.
 pub const SAMPLES: usize = 4;
@@ -60,13 +60,12 @@ pub fn form_factors(
     let visible: Vec<std::sync::Mutex<Vec<u32>>> =
         (0..n * SAMPLES).map(|_| Default::default()).collect();
     let view = |i: usize| View::Half(edges[patches.edge[i / SAMPLES] as usize].normal);
-    let unlimited = crate::transport::kernel::Reach::unlimited(edges.len());
     for_each_visibility(
         g,
         &pos,
         &pixel,
         &view,
-        &unlimited,
+        f64::INFINITY,
         None,
         &|q, spans: &[crate::visibility::Span]| {
             let (i, k) = (q / SAMPLES, q % SAMPLES);

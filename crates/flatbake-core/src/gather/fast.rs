@@ -1,0 +1,445 @@
+//! The fast gather: exact visibility per pixel centre, direct light in closed
+//! form per visible stretch, reflected light from the patch tree.
+
+use std::f64::consts::TAU;
+
+use crate::geometry::{Edge, Geometry};
+use crate::level::{Cell, Level};
+use crate::transport::kernel::Reach;
+use crate::transport::kernel::{Falloff, GatherLine, GatherPoints};
+use crate::transport::{Patches, wanted_reach};
+use crate::visibility::marks::Marks;
+use crate::visibility::{Span, TileTree, View, VisitStats, for_each_visibility};
+
+use super::patch_tree::node_range;
+use super::*;
+
+/// What gathering merged, summed over pixels (what it culled, the
+/// visibility query counts: [`VisitStats`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct GatherCounts {
+    /// Pieces of reflected light gathered ([`PatchTree`] nodes) ...
+    pub pieces: u64,
+    /// ... and the patch pieces they stand for (equal when nothing merged).
+    pub patch_pieces: u64,
+}
+
+impl std::ops::AddAssign for GatherCounts {
+    fn add_assign(&mut self, o: GatherCounts) {
+        self.pieces += o.pieces;
+        self.patch_pieces += o.patch_pieces;
+    }
+}
+
+/// Reusable buffers of [`pixel_light`] (one per thread, so that a pixel
+/// allocates nothing once they have grown). A pixel's visible spans are
+/// first turned into the points at which the closed forms are needed, each
+/// with its own line; those are then evaluated together, in loops without
+/// branches that vectorise ([`GatherPoints`]), and summed.
+#[derive(Default)]
+pub struct PixelScratch {
+    /// Emitting spans: their starts (with their lines), their ends, their
+    /// edges, and the integrals between.
+    em: GatherPoints,
+    em_end: Vec<f64>,
+    em_edge: Vec<u32>,
+    em_g: Vec<f64>,
+    /// Reflected light: for every reflecting span its start, then the end
+    /// of each of its pieces; the three antiderivatives there.
+    pts: GatherPoints,
+    f: Vec<f64>,
+    l: Vec<f64>,
+    q: Vec<f64>,
+    /// The pieces, in the order of their end points.
+    pieces: Vec<PieceAt>,
+    /// The patch trees as cut for the current tile.
+    cuts: TileCuts,
+}
+
+impl PixelScratch {
+    pub fn new() -> Self {
+        Self::default()
+    }
+}
+
+/// A piece of reflected light queued for a pixel: its tree node, the index
+/// of its end point (it starts at the point before), and the node's centre
+/// relative to the foot of the pixel on the edge (`foot - mid`).
+#[derive(Clone, Copy, Debug)]
+struct PieceAt {
+    node: u32,
+    end: u32,
+    off: f64,
+}
+
+/// Adds to `acc` the light that pixel centre `p` receives from its visible
+/// spans (all of them: the falloff reach is applied by the visibility query,
+/// [`for_each_visibility`], which passes on only the spans within reach).
+/// Reflected light is gathered from `tree`'s nodes ([`PatchTree`]), as cut
+/// for `p`'s tile: `p` must be the centre of a pixel, since the cut's bound
+/// is taken at the tile's pixel centres.
+#[allow(clippy::too_many_arguments)]
+pub fn pixel_light(
+    edges: &[Edge],
+    patches: &Patches,
+    rad: &Radiosity,
+    tree: &PatchTree,
+    falloff: Option<Falloff>,
+    kernel: Kernel,
+    p: [f64; 2],
+    spans: &[Span],
+    acc: &mut [f64],
+    scratch: &mut PixelScratch,
+) -> GatherCounts {
+    let k = rad.components;
+    let mut counts = GatherCounts::default();
+    let sc = scratch;
+    sc.em.clear();
+    sc.em_end.clear();
+    sc.em_edge.clear();
+    sc.pts.clear();
+    sc.pieces.clear();
+    sc.cuts.enter(tree, p, edges.len());
+    for span in spans {
+        let ei = span.edge as usize;
+        let e = &edges[ei];
+        if !(rad.edge_emits[ei] || rad.edge_reflects[ei]) {
+            continue;
+        }
+        if kernel == Kernel::Paper {
+            paper_span(edges, patches, rad, falloff, p, span, acc);
+            continue;
+        }
+        let d = e.front_distance(p);
+        let foot = if e.normal.is_vertical_edge() {
+            p[1]
+        } else {
+            p[0]
+        };
+        let line = GatherLine::new(d, falloff);
+        if rad.edge_emits[ei] {
+            sc.em.line(&line);
+            sc.em.push(span.s0 - foot);
+            sc.em_end.push(span.s1 - foot);
+            sc.em_edge.push(span.edge);
+        }
+        if rad.edge_reflects[ei] {
+            reflected_pieces(patches, tree, edges, span, &line, foot, sc, &mut counts);
+        }
+    }
+    let fall = falloff.is_some();
+    // Uniform emission: one integral per emitting span.
+    sc.em.between(&sc.em_end, fall, &mut sc.em_g);
+    for (&ei, &g) in sc.em_edge.iter().zip(&sc.em_g) {
+        let g = g / TAU;
+        for c in 0..k {
+            acc[c] += rad.edge_emission[ei as usize * k + c] * g;
+        }
+    }
+    // Reflected light, quadratic along each piece.
+    sc.pts
+        .antiderivatives(fall, &mut sc.f, &mut sc.l, &mut sc.q);
+    let (f, l, q) = (&sc.f, &sc.l, &sc.q);
+    let k = tree.k;
+    for pc in &sc.pieces {
+        let (nd, i) = (pc.node as usize, pc.end as usize);
+        let g0 = (f[i] - f[i - 1]) / TAU;
+        let g1 = (l[i] - l[i - 1]) / TAU;
+        let g2 = (q[i] - q[i - 1]) / TAU;
+        // Express B = c0 + c1 u + c2 u^2, u = s - mid = t + off, in t = s - foot.
+        let off = pc.off;
+        for c in 0..k {
+            let j = nd * k + c;
+            let (c0, c1, c2) = (tree.c0[j], tree.c1[j], tree.c2[j]);
+            let a1 = c1 + 2.0 * c2 * off;
+            let a0 = c0 + (c1 + c2 * off) * off;
+            acc[c] += a0 * g0 + a1 * g1 + c2 * g2;
+        }
+    }
+    counts
+}
+
+/// Side of the square tiles of pixels that share their cuts of the patch
+/// trees ([`TileCuts`]): that of the visibility tiles, whose pixels a thread
+/// visits one after the other.
+const CUT_TILE: i32 = TileTree::LEAF;
+
+/// A node of a tile's cut of an edge's patch tree: the node, where its axis
+/// range ends, and the patches under it.
+#[derive(Clone, Copy, Debug)]
+struct CutPiece {
+    node: u32,
+    b: f64,
+    first: u32,
+    last: u32,
+}
+
+/// The patch trees ([`PatchTree`]) cut into the nodes that may stand in for
+/// their patches as seen from every pixel centre of one tile: a node is
+/// taken whole when the tile's nearest pixel centre is far enough for it
+/// (then so is every pixel's nearest visible point of it, so each pixel's
+/// bound holds), else split. An edge is cut once per tile, when a pixel of
+/// the tile first sees its reflected light; the pixels then read the pieces
+/// under their spans off the cut instead of each walking the tree.
+#[derive(Default)]
+struct TileCuts {
+    /// The tree and the tile the cached cuts are for.
+    tree: Option<u64>,
+    tile: Option<[i32; 2]>,
+    /// Per edge whose cut is made: where it lies in `pieces`.
+    made: Marks<(u32, u32)>,
+    pieces: Vec<CutPiece>,
+    /// Tree nodes still to visit: (level, index in the level).
+    stack: Vec<(u32, u32)>,
+}
+
+impl TileCuts {
+    /// Starts serving pixel centre `p` with `tree`: cuts made for another
+    /// tile or another tree (the scratch outlives a gather) are dropped.
+    fn enter(&mut self, tree: &PatchTree, p: [f64; 2], edges: usize) {
+        let side = CUT_TILE as f64;
+        let tile = [(p[0] / side).floor() as i32, (p[1] / side).floor() as i32];
+        if self.tile == Some(tile) && self.tree == Some(tree.id) && self.made.len() == edges {
+            return;
+        }
+        self.tile = Some(tile);
+        self.tree = Some(tree.id);
+        self.pieces.clear();
+        self.made.clear(edges);
+    }
+
+    /// The cut of edge `ei` for the current tile.
+    fn of(
+        &mut self,
+        tree: &PatchTree,
+        edges: &[Edge],
+        patches: &Patches,
+        ei: usize,
+    ) -> &[CutPiece] {
+        if let Some((from, to)) = self.made.get(ei) {
+            return &self.pieces[from as usize..to as usize];
+        }
+        let tile = self.tile.expect("enter() comes first");
+        let from = self.pieces.len();
+        self.cut(tree, &edges[ei], patches, ei, tile);
+        self.made.set(ei, (from as u32, self.pieces.len() as u32));
+        &self.pieces[from..]
+    }
+
+    fn cut(&mut self, tree: &PatchTree, e: &Edge, patches: &Patches, ei: usize, tile: [i32; 2]) {
+        let (lo, hi) = e.extent();
+        let h = patches.step[ei];
+        let n = patches.of_edge(ei).len();
+        let levels = &tree.levels[tree.edge_levels[ei] as usize..tree.edge_levels[ei + 1] as usize];
+        // The tile's pixel centres: their nearest distance in front of the
+        // edge's line, and their range along its axis.
+        let side = CUT_TILE as f64;
+        let (x0, y0) = (tile[0] as f64 * side + 0.5, tile[1] as f64 * side + 0.5);
+        let (x1, y1) = (x0 + side - 1.0, y0 + side - 1.0);
+        let front = e
+            .front_distance([x0, y0])
+            .min(e.front_distance([x1, y1]))
+            .max(0.0);
+        let (ta, tb) = if e.normal.is_vertical_edge() {
+            (y0, y1)
+        } else {
+            (x0, x1)
+        };
+        let d2 = front * front;
+        self.stack.clear();
+        self.stack.push((levels.len() as u32 - 2, 0));
+        while let Some((lv, i)) = self.stack.pop() {
+            let (a, b) = node_range(lo, hi, h, n, lv, i as usize);
+            let nd = levels[lv as usize] as usize + i as usize;
+            let gap = (a - tb).max(ta - b).max(0.0);
+            if lv > 0 && d2 + gap * gap < tree.need[nd] {
+                // The right child pushed first, so that the left one comes first.
+                let below = levels[lv as usize] - levels[lv as usize - 1];
+                if 2 * i + 1 < below {
+                    self.stack.push((lv - 1, 2 * i + 1));
+                }
+                self.stack.push((lv - 1, 2 * i));
+                continue;
+            }
+            let first = (i as usize) << lv;
+            let last = (((i as usize + 1) << lv) - 1).min(n - 1);
+            self.pieces.push(CutPiece {
+                node: nd as u32,
+                b,
+                first: first as u32,
+                last: last as u32,
+            });
+        }
+    }
+}
+
+/// Queues the reflected light (`B - E`, quadratic along each piece) under
+/// `span` for pixel centre `p` at `foot` on the edge: the pieces of the
+/// tile's cut of the edge's tree that overlap the span, clipped to it, in
+/// order along the edge. The span's start point goes into `sc.pts`, then
+/// each piece's end point; each piece goes into `sc.pieces`.
+#[allow(clippy::too_many_arguments)]
+fn reflected_pieces(
+    patches: &Patches,
+    tree: &PatchTree,
+    edges: &[Edge],
+    span: &Span,
+    line: &GatherLine,
+    foot: f64,
+    sc: &mut PixelScratch,
+    counts: &mut GatherCounts,
+) {
+    let ei = span.edge as usize;
+    let (lo, _) = edges[ei].extent();
+    let h = patches.step[ei];
+    let n = patches.of_edge(ei).len();
+    // (`as` truncates towards 0 and saturates: the floor, clamped at 0.)
+    let patch_of = |s: f64| (((s - lo) / h) as usize).min(n - 1);
+    let (j0, j1) = (patch_of(span.s0), patch_of(span.s1));
+    let PixelScratch {
+        pts, pieces, cuts, ..
+    } = sc;
+    let cut = cuts.of(tree, edges, patches, ei);
+    pts.line(line);
+    pts.push(span.s0 - foot);
+    // The first piece that ends after the span starts.
+    let from = cut.partition_point(|c| c.b <= span.s0);
+    for c in &cut[from.min(cut.len() - 1)..] {
+        // The last piece ends the span.
+        let end = if c.last as usize >= j1 { span.s1 } else { c.b };
+        pts.push(end - foot);
+        pieces.push(PieceAt {
+            node: c.node,
+            end: pts.len() as u32 - 1,
+            off: foot - tree.mid[c.node as usize],
+        });
+        counts.pieces += 1;
+        counts.patch_pieces +=
+            ((c.last as usize).min(j1) + 1).saturating_sub((c.first as usize).max(j0)) as u64;
+        if c.last as usize >= j1 {
+            break;
+        }
+    }
+}
+
+/// Equation 5 of the paper for the patches of one visible span: each patch
+/// adds `B * A cos(theta) / (A + r^2) * (visible fraction)`, with `theta` and
+/// `r` taken at the patch centre and `A` infinite without falloff.
+fn paper_span(
+    edges: &[Edge],
+    patches: &Patches,
+    rad: &Radiosity,
+    falloff: Option<Falloff>,
+    p: [f64; 2],
+    span: &Span,
+    acc: &mut [f64],
+) {
+    let e = &edges[span.edge as usize];
+    let d = e.front_distance(p);
+    patches.for_each_piece(edges, span, |pt, a, b| {
+        let (s0, s1) = patches.bounds(edges, pt);
+        let centre = e.point_at(0.5 * (s0 + s1));
+        let r = (p[0] - centre[0]).hypot(p[1] - centre[1]);
+        let w = falloff.map_or(1.0, |f| f.weight(r));
+        let vis = (b - a) / (s1 - s0);
+        for c in 0..rad.components {
+            acc[c] += rad.patch(patches, pt, c) * (d / r) * w * vis;
+        }
+    });
+}
+
+thread_local! {
+    static SCRATCH: std::cell::RefCell<PixelScratch> = std::cell::RefCell::new(PixelScratch::new());
+}
+
+/// The floor pixels of a level, as query points.
+pub fn floor_pixels(level: &Level) -> Vec<[i32; 2]> {
+    let mut v = Vec::new();
+    for y in 0..level.height {
+        for x in 0..level.width {
+            if level.cell(x, y) == Cell::Floor {
+                v.push([x as i32, y as i32]);
+            }
+        }
+    }
+    v
+}
+
+/// Fast gather: light at each of `pixels`, `components` values per pixel,
+/// and what was left out (beyond reach, or in regions no lit edge reaches).
+/// Distant reflected light is gathered in merged pieces whose total error
+/// per pixel is at most `tolerance` ([`PatchTree`], deviations measured
+/// over the components `decide`); how much was merged is counted.
+#[allow(clippy::too_many_arguments)]
+pub fn gather(
+    geometry: &Geometry,
+    patches: &Patches,
+    rad: &Radiosity,
+    falloff: Option<Falloff>,
+    kernel: Kernel,
+    pixels: &[[i32; 2]],
+    reach: &Reach,
+    tolerance: f64,
+    decide: std::ops::Range<usize>,
+) -> (Vec<f64>, VisitStats, GatherCounts) {
+    let k = rad.components;
+    let tree = PatchTree::new(&geometry.edges, patches, rad, decide, falloff, tolerance);
+    let mut out = vec![0.0; pixels.len() * k];
+    let pos: Vec<[f64; 2]> = pixels
+        .iter()
+        .map(|p| [p[0] as f64 + 0.5, p[1] as f64 + 0.5])
+        .collect();
+    let shared = Disjoint::new(&mut out);
+    // What each pixel merged, summed afterwards (a lock or an atomic shared
+    // by every pixel costs more than the pixel's own bookkeeping).
+    let mut merged = vec![[0u32; 2]; pixels.len()];
+    let shared_merged = Disjoint::new(&mut merged);
+    // Edges with light, each within its reach.
+    let reach2 = wanted_reach(reach, |e| rad.edge_emits[e] || rad.edge_reflects[e]);
+    let stats = for_each_visibility(
+        geometry,
+        &pos,
+        pixels,
+        &|_| View::Full,
+        reach.max,
+        Some(&reach2),
+        &|i, spans| {
+            // Bakes have at most three channels: no allocation per pixel.
+            let mut small = [0.0; 3];
+            let mut big = Vec::new();
+            let acc = if k <= 3 {
+                &mut small[..k]
+            } else {
+                big.resize(k, 0.0);
+                &mut big[..]
+            };
+            let c = SCRATCH.with(|sc| {
+                pixel_light(
+                    &geometry.edges,
+                    patches,
+                    rad,
+                    &tree,
+                    falloff,
+                    kernel,
+                    pos[i],
+                    spans,
+                    acc,
+                    &mut sc.borrow_mut(),
+                )
+            });
+            let c = [c.pieces, c.patch_pieces].map(|v| v.min(u32::MAX as u64) as u32);
+            // SAFETY: each pixel index is visited exactly once.
+            unsafe { shared_merged.write(i, c) };
+            for (c, &v) in acc.iter().enumerate() {
+                // SAFETY: as above.
+                unsafe { shared.write(i * k + c, v) };
+            }
+        },
+    );
+    let counts = merged.iter().fold(GatherCounts::default(), |mut t, c| {
+        t.pieces += c[0] as u64;
+        t.patch_pieces += c[1] as u64;
+        t
+    });
+    (out, stats, counts)
+}

@@ -1,0 +1,323 @@
+//! The form factors: exact point-to-patch factors at Gauss-Legendre points,
+//! symmetrised into `S` with effective lengths `D` (see the module docs of
+//! [`crate::transport`]).
+
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::geometry::{Edge, Geometry, Normal};
+use crate::transport::kernel::Reach;
+use crate::transport::kernel::{FactorLine, Falloff, gauss_legendre};
+use crate::transport::{Patches, axis_vec, normal_vec};
+use crate::visibility::{Span, View, VisitStats, for_each_visibility};
+
+/// The factors from point `x` on an edge with normal `nx` to every patch it
+/// sees, appended to `out` as `(patch, K)`; `spans` is the point's visibility
+/// (the falloff reach is applied there, see [`for_each_visibility`]).
+pub fn point_factors(
+    edges: &[Edge],
+    patches: &Patches,
+    x: [f64; 2],
+    nx: Normal,
+    spans: &[Span],
+    falloff: Option<Falloff>,
+    out: &mut Vec<(u32, f64)>,
+) {
+    let nxv = normal_vec(nx);
+    for span in spans {
+        let e = &edges[span.edge as usize];
+        let d = e.front_distance(x);
+        let nj = normal_vec(e.normal);
+        let tj = axis_vec(e.normal);
+        let alpha = -(nxv[0] * nj[0] + nxv[1] * nj[1]);
+        let beta = nxv[0] * tj[0] + nxv[1] * tj[1];
+        let foot = if e.normal.is_vertical_edge() {
+            x[1]
+        } else {
+            x[0]
+        };
+        let line = FactorLine::new(d, alpha, beta, falloff);
+        let mut prev: Option<(f64, f64)> = None;
+        patches.for_each_piece(edges, span, |p, a, b| {
+            let fa = match prev {
+                Some((s, v)) if s == a => v,
+                _ => line.at(a - foot),
+            };
+            let fb = line.at(b - foot);
+            prev = Some((b, fb));
+            let k = fb - fa;
+            if k > 0.0 {
+                out.push((p as u32, k));
+            }
+        });
+    }
+}
+
+/// The form factors, stored as the symmetric matrix `S` (full storage, CSR)
+/// and the effective lengths `D`: `F_ij = S_ij / D_i`.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct FormFactors {
+    pub row_ptr: Vec<usize>,
+    pub col: Vec<u32>,
+    pub val: Vec<f64>,
+    /// Effective lengths `D_i`.
+    pub dlen: Vec<f64>,
+    /// Raw row sums `t_i` of F: the fraction of patch `i`'s light that lands
+    /// on some patch (1 in a closed room without falloff).
+    pub coverage: Vec<f64>,
+}
+
+impl FormFactors {
+    pub fn n(&self) -> usize {
+        self.dlen.len()
+    }
+
+    pub fn nnz(&self) -> usize {
+        self.val.len()
+    }
+
+    /// Row `i` as `(column, F_ij)`.
+    pub fn row(&self, i: usize) -> impl Iterator<Item = (usize, f64)> + '_ {
+        let d = self.dlen[i];
+        (self.row_ptr[i]..self.row_ptr[i + 1]).map(move |k| (self.col[k] as usize, self.val[k] / d))
+    }
+
+    /// `F_ij`, or 0 (binary search in the row).
+    pub fn get(&self, i: usize, j: usize) -> f64 {
+        let r = self.row_ptr[i]..self.row_ptr[i + 1];
+        match self.col[r.clone()].binary_search(&(j as u32)) {
+            Ok(k) => self.val[r.start + k] / self.dlen[i],
+            Err(_) => 0.0,
+        }
+    }
+
+    /// Builds `S` and `D` from raw rows `F0` (sorted by column) and patch lengths.
+    pub fn from_raw_rows(rows: Vec<Vec<(u32, f64)>>, len: &[f64]) -> FormFactors {
+        let n = rows.len();
+        let coverage: Vec<f64> = rows.iter().map(|r| r.iter().map(|e| e.1).sum()).collect();
+        // A_ij = L_i F0_ij / 2 and its transpose, merged row by row.
+        let mut tcount = vec![0usize; n + 1];
+        for r in &rows {
+            for &(j, _) in r {
+                tcount[j as usize + 1] += 1;
+            }
+        }
+        for i in 0..n {
+            tcount[i + 1] += tcount[i];
+        }
+        let mut tcol = vec![0u32; tcount[n]];
+        let mut tval = vec![0f64; tcount[n]];
+        let mut fill = tcount.clone();
+        for (i, r) in rows.iter().enumerate() {
+            for &(j, v) in r {
+                let k = fill[j as usize];
+                tcol[k] = i as u32;
+                tval[k] = 0.5 * len[i] * v;
+                fill[j as usize] += 1;
+            }
+        }
+        let mut row_ptr = Vec::with_capacity(n + 1);
+        let mut col = Vec::new();
+        let mut val = Vec::new();
+        row_ptr.push(0);
+        for (i, r) in rows.iter().enumerate() {
+            // Merge row i of A (sorted) with row i of A^T (sorted by construction).
+            let t = tcount[i]..tcount[i + 1];
+            let (mut a, mut b) = (0, t.start);
+            while a < r.len() || b < t.end {
+                let ca = r.get(a).map_or(u32::MAX, |e| e.0);
+                let cb = if b < t.end { tcol[b] } else { u32::MAX };
+                if ca == cb {
+                    col.push(ca);
+                    val.push(0.5 * len[i] * r[a].1 + tval[b]);
+                    a += 1;
+                    b += 1;
+                } else if ca < cb {
+                    col.push(ca);
+                    val.push(0.5 * len[i] * r[a].1);
+                    a += 1;
+                } else {
+                    col.push(cb);
+                    val.push(tval[b]);
+                    b += 1;
+                }
+            }
+            row_ptr.push(col.len());
+        }
+        let mut coverage = coverage;
+        let dlen = (0..n)
+            .map(|i| {
+                let s: f64 = val[row_ptr[i]..row_ptr[i + 1]].iter().sum();
+                if coverage[i] > 0.0 && s > 0.0 {
+                    s / coverage[i]
+                } else {
+                    // A patch whose own row is empty (every pair culled by
+                    // the falloff reach) can still be in other patches' rows,
+                    // and so in its own row of the symmetric S. Its coverage
+                    // is then that row's sum, not 0: otherwise the light it
+                    // sends is counted as escaped as well as received, and
+                    // emitted != absorbed + escaped.
+                    coverage[i] = s / len[i];
+                    len[i]
+                }
+            })
+            .collect();
+        FormFactors {
+            row_ptr,
+            col,
+            val,
+            dlen,
+            coverage,
+        }
+    }
+}
+
+/// The point-to-patch factors of every quadrature point, `q` points per
+/// patch in order (CSR). After a solve they give the radiosity at each point,
+/// `B(x) = E + rho * sum_j K(x, j) B_j`, from which each patch gets a slope.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct PointRows {
+    pub q: usize,
+    pub row_ptr: Vec<usize>,
+    pub col: Vec<u32>,
+    pub val: Vec<f64>,
+}
+
+impl PointRows {
+    /// Per-patch slope (per unit length along the edge's axis) of the
+    /// radiosity profile through the quadrature points, least squares, limited
+    /// so that `B` stays non-negative over the patch. `b` is the solved patch
+    /// radiosity, `e` and `rho` per patch.
+    pub fn slopes(&self, patches: &Patches, rho: &[f64], e: &[f64], b: &[f64]) -> Vec<f64> {
+        let (xs, ws) = gauss_legendre(self.q);
+        let q = xs.len();
+        let den: f64 = xs
+            .iter()
+            .zip(ws)
+            .map(|(x, w)| w * (x - 0.5) * (x - 0.5))
+            .sum();
+        (0..patches.len())
+            .into_par_iter()
+            .map(|p| {
+                if den == 0.0 || rho[p] == 0.0 {
+                    return 0.0;
+                }
+                let mut num = 0.0;
+                for k in 0..q {
+                    let r = self.row_ptr[p * q + k]..self.row_ptr[p * q + k + 1];
+                    let h: f64 = self.col[r.clone()]
+                        .iter()
+                        .zip(&self.val[r])
+                        .map(|(&j, &v)| v * b[j as usize])
+                        .sum();
+                    num += ws[k] * (e[p] + rho[p] * h) * (xs[k] - 0.5);
+                }
+                let len = patches.length(p);
+                let g = num / (den * len);
+                // Keep B >= 0 at both ends of the patch.
+                let limit = 2.0 * b[p].max(0.0) / len;
+                g.clamp(-limit, limit)
+            })
+            .collect()
+    }
+}
+
+/// [`Wanted`] squared reaches for `reach`: edges that `lit` says have light
+/// reach out to their radius, the others nowhere.
+pub fn wanted_reach(reach: &Reach, lit: impl Fn(usize) -> bool) -> Vec<f64> {
+    reach
+        .radius
+        .iter()
+        .enumerate()
+        .map(|(e, &r)| if lit(e) { r * r } else { -1.0 })
+        .collect()
+}
+
+/// Computes the form factors with `quad` Gauss-Legendre points per patch,
+/// and the per-point rows behind them.
+pub fn form_factors(
+    geometry: &Geometry,
+    patches: &Patches,
+    quad: usize,
+    falloff: Option<Falloff>,
+    reach: &Reach,
+) -> (FormFactors, PointRows, VisitStats) {
+    let edges = &geometry.edges;
+    let (xs, ws) = gauss_legendre(quad);
+    let q = xs.len();
+    let n = patches.len();
+    // Query points: q per patch, each with the free pixel in front of it.
+    let mut pos = Vec::with_capacity(n * q);
+    let mut pixel = Vec::with_capacity(n * q);
+    for p in 0..n {
+        let e = &edges[patches.edge[p] as usize];
+        let (s0, s1) = patches.bounds(edges, p);
+        for &x in xs {
+            let s = s0 + x * (s1 - s0);
+            pos.push(e.point_at(s));
+            pixel.push(e.free_pixel_at(s.floor() as i32));
+        }
+    }
+    let results: Vec<std::sync::Mutex<Vec<(u32, f64)>>> =
+        (0..n * q).map(|_| Default::default()).collect();
+    let view = |i: usize| View::Half(edges[patches.edge[i / q] as usize].normal);
+    // Every edge receives light: each is wanted within its reach.
+    let reach2 = wanted_reach(reach, |_| true);
+    let stats = for_each_visibility(
+        geometry,
+        &pos,
+        &pixel,
+        &view,
+        reach.max,
+        Some(&reach2),
+        &|i, spans| {
+            let mut out = Vec::new();
+            point_factors(
+                edges,
+                patches,
+                pos[i],
+                edges[patches.edge[i / q] as usize].normal,
+                spans,
+                falloff,
+                &mut out,
+            );
+            *results[i].lock().expect("no panics while holding the lock") = out;
+        },
+    );
+    let rows: Vec<Vec<(u32, f64)>> = (0..n)
+        .into_par_iter()
+        .map(|p| {
+            let mut row: Vec<(u32, f64)> = Vec::new();
+            for (k, w) in ws.iter().enumerate() {
+                let r = results[p * q + k]
+                    .lock()
+                    .expect("no panics while holding the lock");
+                row.extend(r.iter().map(|&(j, v)| (j, v * w)));
+            }
+            row.sort_by_key(|e| e.0);
+            let mut merged: Vec<(u32, f64)> = Vec::with_capacity(row.len());
+            for (j, v) in row {
+                match merged.last_mut() {
+                    Some(last) if last.0 == j => last.1 += v,
+                    _ => merged.push((j, v)),
+                }
+            }
+            merged
+        })
+        .collect();
+    let mut points = PointRows {
+        q,
+        row_ptr: Vec::with_capacity(n * q + 1),
+        col: Vec::new(),
+        val: Vec::new(),
+    };
+    points.row_ptr.push(0);
+    for r in results {
+        let r = r.into_inner().expect("no panics while holding the lock");
+        points.col.extend(r.iter().map(|e| e.0));
+        points.val.extend(r.iter().map(|e| e.1));
+        points.row_ptr.push(points.col.len());
+    }
+    let len: Vec<f64> = (0..n).map(|p| patches.length(p)).collect();
+    (FormFactors::from_raw_rows(rows, &len), points, stats)
+}

@@ -1,0 +1,113 @@
+//! Patches: every edge cut into equal pieces no longer than the patch length.
+
+use std::ops::Range;
+
+use serde::{Deserialize, Serialize};
+
+use crate::geometry::{Edge, Geometry, Normal};
+use crate::visibility::Span;
+
+/// Patches: every edge cut into equal pieces.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Patches {
+    /// Patches of edge `e` are `first[e]..first[e + 1]`.
+    pub first: Vec<u32>,
+    /// Patch length on each edge.
+    pub step: Vec<f64>,
+    /// Edge of each patch.
+    pub edge: Vec<u32>,
+}
+
+impl Patches {
+    /// Cuts every edge into `ceil(len / patch_len)` equal patches.
+    pub fn new(geometry: &Geometry, patch_len: f64) -> Patches {
+        let mut first = Vec::with_capacity(geometry.edges.len() + 1);
+        let mut step = Vec::with_capacity(geometry.edges.len());
+        let mut edge = Vec::new();
+        first.push(0);
+        for (i, e) in geometry.edges.iter().enumerate() {
+            let len = e.len();
+            let n = ((len / patch_len).ceil() as usize).max(1);
+            step.push(len / n as f64);
+            edge.extend(std::iter::repeat_n(i as u32, n));
+            first.push(edge.len() as u32);
+        }
+        Patches { first, step, edge }
+    }
+
+    pub fn len(&self) -> usize {
+        self.edge.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.edge.is_empty()
+    }
+
+    pub fn of_edge(&self, e: usize) -> Range<usize> {
+        self.first[e] as usize..self.first[e + 1] as usize
+    }
+
+    /// Length of patch `p`.
+    pub fn length(&self, p: usize) -> f64 {
+        self.step[self.edge[p] as usize]
+    }
+
+    /// Axis range `[s0, s1]` of patch `p` on its edge.
+    pub fn bounds(&self, edges: &[Edge], p: usize) -> (f64, f64) {
+        let e = self.edge[p] as usize;
+        let (lo, hi) = edges[e].extent();
+        let k = p - self.first[e] as usize;
+        let n = self.first[e + 1] as usize - self.first[e] as usize;
+        let h = self.step[e];
+        let s0 = lo + k as f64 * h;
+        let s1 = if k + 1 == n {
+            hi
+        } else {
+            lo + (k + 1) as f64 * h
+        };
+        (s0, s1)
+    }
+
+    /// Calls `f(patch, a, b)` for each patch of the span's edge that overlaps
+    /// the span, with `[a, b]` the overlap (axis coordinates, in order).
+    #[inline]
+    pub fn for_each_piece(&self, edges: &[Edge], span: &Span, mut f: impl FnMut(usize, f64, f64)) {
+        let e = span.edge as usize;
+        let (lo, _) = edges[e].extent();
+        let h = self.step[e];
+        let first = self.first[e] as usize;
+        let n = self.first[e + 1] as usize - first;
+        let k0 = (((span.s0 - lo) / h).floor().max(0.0) as usize).min(n - 1);
+        let mut a = span.s0;
+        let mut k = k0;
+        loop {
+            let end = if k + 1 == n {
+                span.s1
+            } else {
+                (lo + (k + 1) as f64 * h).min(span.s1)
+            };
+            if end > a {
+                f(first + k, a, end);
+            }
+            a = end;
+            k += 1;
+            if k >= n || a >= span.s1 {
+                break;
+            }
+        }
+    }
+}
+
+/// Unit vector along an edge's axis (`+y` for vertical edges, `+x` otherwise).
+pub fn axis_vec(n: Normal) -> [f64; 2] {
+    if n.is_vertical_edge() {
+        [0.0, 1.0]
+    } else {
+        [1.0, 0.0]
+    }
+}
+
+pub fn normal_vec(n: Normal) -> [f64; 2] {
+    let v = n.vec();
+    [v[0] as f64, v[1] as f64]
+}

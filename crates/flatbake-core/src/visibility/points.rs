@@ -1,0 +1,210 @@
+//! Visibility for many query points at once: points bucketed by tile, and
+//! the driver that runs the right query (sweep or walk) for each point in
+//! parallel over the leaf tiles of a [`TileTree`].
+
+use std::cell::RefCell;
+
+use crate::geometry::Geometry;
+use crate::visibility::{Blocks, Reachable, Rect, Span, Sweeper, TileTree, View, Wanted};
+
+/// Query points bucketed by leaf tile, with a summed-area table to answer
+/// "does this rectangle hold any point" in constant time.
+pub struct PointGrid {
+    width: usize,
+    leaves_x: usize,
+    leaf: usize,
+    sat: Vec<u32>,
+    /// Points of leaf `l` are `order[start[l]..start[l + 1]]`.
+    start: Vec<usize>,
+    order: Vec<u32>,
+}
+
+impl PointGrid {
+    /// `pixels[i]` is the pixel that query point `i` belongs to.
+    pub fn new(width: usize, height: usize, leaf: usize, pixels: &[[i32; 2]]) -> PointGrid {
+        let mut sat = vec![0u32; (width + 1) * (height + 1)];
+        let leaves_x = width.div_ceil(leaf);
+        let leaves = leaves_x * height.div_ceil(leaf);
+        let mut start = vec![0usize; leaves + 1];
+        let leaf_of = |p: [i32; 2]| (p[1] as usize / leaf) * leaves_x + p[0] as usize / leaf;
+        for &p in pixels {
+            sat[(p[1] as usize + 1) * (width + 1) + p[0] as usize + 1] += 1;
+            start[leaf_of(p) + 1] += 1;
+        }
+        for y in 1..=height {
+            for x in 1..=width {
+                let i = y * (width + 1) + x;
+                sat[i] += sat[i - 1] + sat[i - width - 1] - sat[i - width - 2];
+            }
+        }
+        for l in 0..leaves {
+            start[l + 1] += start[l];
+        }
+        let mut fill = start.clone();
+        let mut order = vec![0u32; pixels.len()];
+        for (i, &p) in pixels.iter().enumerate() {
+            let l = leaf_of(p);
+            order[fill[l]] = i as u32;
+            fill[l] += 1;
+        }
+        // Within a leaf, rows alternate direction, so that each point is a
+        // neighbour of the one before (the sweep reuses its event order).
+        for l in 0..leaves {
+            order[start[l]..start[l + 1]].sort_by_key(|&i| {
+                let p = pixels[i as usize];
+                (p[1], if p[1] % 2 == 0 { p[0] } else { -p[0] })
+            });
+        }
+        PointGrid {
+            width,
+            leaves_x,
+            leaf,
+            sat,
+            start,
+            order,
+        }
+    }
+
+    /// Number of points in the rectangle.
+    pub fn count_in(&self, r: Rect) -> u64 {
+        let w = self.width + 1;
+        let at = |x: i32, y: i32| self.sat[y as usize * w + x as usize] as i64;
+        (at(r.x1, r.y1) - at(r.x0, r.y1) - at(r.x1, r.y0) + at(r.x0, r.y0)) as u64
+    }
+
+    /// Points of the leaf tile whose top-left pixel is `(r.x0, r.y0)`.
+    pub fn in_leaf(&self, r: Rect) -> &[u32] {
+        let l = (r.y0 as usize / self.leaf) * self.leaves_x + r.x0 as usize / self.leaf;
+        &self.order[self.start[l]..self.start[l + 1]]
+    }
+}
+
+thread_local! {
+    static SWEEPER: RefCell<(Sweeper, Vec<Span>, Vec<u32>)> = RefCell::new((Sweeper::new(), Vec::new(), Vec::new()));
+}
+
+/// What [`for_each_visibility`] left out.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct VisitStats {
+    /// (edge, point) pairs dropped because the edge lies beyond every reach.
+    pub culled_pairs: u64,
+    /// Points whose region sees no contributing edge: reported with no spans.
+    pub unreached: u64,
+}
+
+/// Runs `f(point index, spans)` for every query point, with the exact
+/// visibility of that point, in parallel over leaf tiles. `pixel[i]` is the
+/// free pixel a point belongs to, `pos[i]` its position, `view[i]` its view.
+/// Edges beyond `reach_max` are left out. With `reach2` (see [`Wanted`]),
+/// only the spans of edges within their squared reach are passed on (the
+/// others still occlude; they count as culled pairs), and a point whose
+/// region has no candidate within reach gets no spans without a visibility
+/// query.
+pub fn for_each_visibility<F>(
+    geometry: &Geometry,
+    pos: &[[f64; 2]],
+    pixel: &[[i32; 2]],
+    view: &(dyn Fn(usize) -> View + Sync),
+    reach_max: f64,
+    reach2: Option<&[f64]>,
+    f: &F,
+) -> VisitStats
+where
+    F: Fn(usize, &[Span]) + Sync,
+{
+    // A floor gather asks at pixel centres only: its regions cull more.
+    let centres = pos
+        .iter()
+        .zip(pixel)
+        .all(|(p, px)| p[0] == px[0] as f64 + 0.5 && p[1] == px[1] as f64 + 0.5);
+    let tree = TileTree::new(geometry, centres);
+    let blocks = Blocks::new(geometry);
+    let grid = PointGrid::new(geometry.width, geometry.height, tree.leaf as usize, pixel);
+    let unreached = std::sync::atomic::AtomicU64::new(0);
+    let left_out = std::sync::atomic::AtomicU64::new(0);
+    let culled_pairs = tree.for_each_leaf(&|r| grid.count_in(r), reach_max, &|leaf| {
+        // Per region with a known list: where each candidate's light reaches.
+        let class: Vec<Option<Vec<Reachable>>> = leaf
+            .regions
+            .iter()
+            .map(|r| {
+                let (reach2, list) = (reach2?, r.candidates.as_ref()?);
+                let mut c = Vec::new();
+                Wanted::classify(reach2, &geometry.edges, &r.bbox, list, &mut c);
+                Some(c)
+            })
+            .collect();
+        // Regions where no candidate is within reach of any point.
+        let dark: Vec<bool> = class
+            .iter()
+            .map(|c| {
+                c.as_ref().is_some_and(|c| {
+                    c.iter()
+                        .all(|&k| k == Reachable::Beyond || k == Reachable::Never)
+                })
+            })
+            .collect();
+        SWEEPER.with(|cell| {
+            let (sweeper, spans, seeds) = &mut *cell.borrow_mut();
+            let mut skipped = 0;
+            let mut dropped = 0;
+            // Walks are seeded with what the previous point of the region saw.
+            let mut seed_region = usize::MAX;
+            for &i in grid.in_leaf(leaf.rect) {
+                let i = i as usize;
+                let px = pixel[i];
+                let comp = geometry.components[px[1] as usize * geometry.width + px[0] as usize];
+                spans.clear();
+                let region = leaf.region_at(px);
+                if region.is_some_and(|r| dark[r]) {
+                    skipped += 1;
+                } else {
+                    match leaf.candidates_at(px) {
+                        Some(cands) => {
+                            let class = region.and_then(|r| class[r].as_deref());
+                            dropped += sweeper.sweep_wanted(
+                                &geometry.edges,
+                                cands,
+                                pos[i],
+                                view(i),
+                                comp,
+                                reach2.map(|reach2| Wanted { reach2, class }),
+                                spans,
+                            )
+                        }
+                        None => {
+                            if region != Some(seed_region) {
+                                seeds.clear();
+                            }
+                            dropped += sweeper.walk_wanted(
+                                &geometry.edges,
+                                &blocks,
+                                pos[i],
+                                view(i),
+                                comp,
+                                reach_max,
+                                seeds,
+                                reach2.map(|reach2| Wanted {
+                                    reach2,
+                                    class: None,
+                                }),
+                                spans,
+                            );
+                            seeds.clear();
+                            seeds.extend(spans.iter().map(|s| s.edge));
+                            seeds.dedup();
+                            seed_region = region.unwrap_or(usize::MAX);
+                        }
+                    }
+                }
+                f(i, spans);
+            }
+            unreached.fetch_add(skipped, std::sync::atomic::Ordering::Relaxed);
+            left_out.fetch_add(dropped, std::sync::atomic::Ordering::Relaxed);
+        })
+    });
+    VisitStats {
+        culled_pairs: culled_pairs + left_out.into_inner(),
+        unreached: unreached.into_inner(),
+    }
+}

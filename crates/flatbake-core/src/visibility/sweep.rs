@@ -1,0 +1,250 @@
+//! The angular sweep: exact visibility from one point over a short candidate list.
+
+use super::*;
+
+impl Sweeper {
+    /// The visible spans seen from `p` looking into `view`, among `candidates`
+    /// (indices into `edges`) that belong to free-space component `comp`.
+    /// Spans are appended to `out` in increasing pseudo-angle.
+    pub fn sweep(
+        &mut self,
+        edges: &[Edge],
+        candidates: &[u32],
+        p: [f64; 2],
+        view: View,
+        comp: u32,
+        out: &mut Vec<Span>,
+    ) {
+        self.sweep_wanted(edges, candidates, p, view, comp, None, out);
+    }
+
+    /// [`Sweeper::sweep`], returning only the spans `wanted`; returns how
+    /// many spans of edges with light it left out.
+    #[allow(clippy::too_many_arguments)]
+    pub fn sweep_wanted(
+        &mut self,
+        edges: &[Edge],
+        candidates: &[u32],
+        p: [f64; 2],
+        view: View,
+        comp: u32,
+        wanted: Option<Wanted>,
+        out: &mut Vec<Span>,
+    ) -> u64 {
+        let q = Query::new(p, view, comp);
+        self.pieces.clear();
+        self.events.clear();
+        for (j, &ei) in candidates.iter().enumerate() {
+            let from = self.pieces.len();
+            q.pieces(edges, ei, &mut self.pieces);
+            if let Some(w) = wanted
+                && self.pieces.len() > from
+            {
+                Self::mark(&mut self.pieces[from..], w.at(edges, ei, Some(j), p));
+            }
+        }
+        if self.pieces.is_empty() {
+            return 0;
+        }
+        let mut left_out = 0;
+        self.shape.clear();
+        for (id, pc) in self.pieces.iter().enumerate() {
+            let part = u32::from(id > 0 && self.pieces[id - 1].edge == pc.edge);
+            let base = pc.edge * 4 + part * 2;
+            self.events.push(Event::new(pc.ka, base + 1, 2 * id as u32));
+            self.events.push(Event::new(pc.kb, base, 2 * id as u32 + 1));
+            self.shape.push(base);
+        }
+        let same = self.shape == self.prev_shape;
+        std::mem::swap(&mut self.shape, &mut self.prev_shape);
+        self.sort_events(edges.len(), same);
+        self.active.clear();
+        let n = self.events.len();
+        let mut i = 0;
+        // The span under construction: (piece, start key, start vertex).
+        let mut open: Option<(u32, f64, [f64; 2])> = None;
+        // Position of each piece in `active` (for O(1) removal).
+        self.at.clear();
+        self.at.resize(self.pieces.len(), u32::MAX);
+        // Nearest piece of the previous interval.
+        let mut current: Option<u32> = None;
+        while i < n {
+            let key = self.events[i].key();
+            let vertex = {
+                let ev = self.events[i];
+                let pc = &self.pieces[ev.piece() as usize];
+                if ev.insert() { pc.va } else { pc.vb }
+            };
+            self.fresh.clear();
+            let mut lost_nearest = false;
+            while i < n && self.events[i].key() == key {
+                let ev = self.events[i];
+                let piece = ev.piece();
+                if ev.insert() {
+                    self.at[piece as usize] = self.active.len() as u32;
+                    self.active.push(piece);
+                    self.fresh.push(piece);
+                } else {
+                    let pos = self.at[piece as usize];
+                    if pos != u32::MAX {
+                        let pos = pos as usize;
+                        self.active.swap_remove(pos);
+                        if let Some(&moved) = self.active.get(pos) {
+                            self.at[moved as usize] = pos as u32;
+                        }
+                        self.at[piece as usize] = u32::MAX;
+                        lost_nearest |= current == Some(piece);
+                    }
+                }
+                i += 1;
+            }
+            // Nearest active piece on the interval (key, next key). Edges do
+            // not cross, so among pieces active on both sides of an event
+            // the nearer stays nearer: unless the nearest piece just ended,
+            // only the pieces that just started can take its place.
+            let nearest = if i >= n || self.active.is_empty() {
+                None
+            } else if !lost_nearest && self.fresh.is_empty() && current.is_some() {
+                // Only pieces behind the nearest ended: it stays nearest.
+                current
+            } else {
+                let (du, dv) = diamond_dir(0.5 * (key + self.events[i].key()));
+                // Compared along one ray, so any positive multiple of the
+                // ray parameter will do: `t |du| |dv|` needs no division.
+                // An axis-parallel ray keeps the plain parameter.
+                let (su, sv) = if du == 0.0 || dv == 0.0 {
+                    (1.0 / du.abs(), 1.0 / dv.abs())
+                } else {
+                    (dv.abs(), du.abs())
+                };
+                let mut best = u32::MAX;
+                let mut best_t = f64::INFINITY;
+                let mut consider = |a: u32| {
+                    let t = self.pieces[a as usize].t_scaled(su, sv);
+                    if t < best_t || (t == best_t && a < best) {
+                        best_t = t;
+                        best = a;
+                    }
+                };
+                match current {
+                    Some(c) if !lost_nearest => {
+                        consider(c);
+                        for &a in &self.fresh {
+                            consider(a);
+                        }
+                    }
+                    _ => {
+                        for &a in &self.active {
+                            consider(a);
+                        }
+                    }
+                }
+                Some(best)
+            };
+            // The nearest piece's span, unless it is not wanted (then it
+            // only hides what is behind it).
+            let shown = match nearest {
+                Some(pc) if !self.pieces[pc as usize].lit => {
+                    if current != nearest && self.pieces[pc as usize].dim {
+                        left_out += 1;
+                    }
+                    None
+                }
+                _ => nearest,
+            };
+            current = nearest;
+            if open.map(|o| o.0) != shown {
+                if let Some((pc, k0, v0)) = open.take() {
+                    self.emit(edges, p, pc, k0, v0, key, vertex, out);
+                }
+                if let Some(pc) = shown {
+                    open = Some((pc, key, vertex));
+                }
+            }
+        }
+        debug_assert!(open.is_none(), "the last event closes every span");
+        left_out
+    }
+
+    /// Marks the `pieces` of one edge as wanted or not (`(lit, dim)`, see
+    /// [`Piece`]).
+    #[inline]
+    pub(super) fn mark(pieces: &mut [Piece], (lit, dim): (bool, bool)) {
+        for pc in pieces {
+            pc.lit = lit;
+            pc.dim = dim;
+        }
+    }
+
+    /// Sorts `events` by key, ties by id: a total order, so the result does
+    /// not depend on the order they came in. They are first laid out in the
+    /// previous sweep's order (neighbouring points see nearly the same
+    /// angular order), which an insertion sort then only has to patch up.
+    ///
+    /// `same`: the pieces are those of the previous sweep, in the same order
+    /// (neighbours usually see the same edges, split the same way), so an
+    /// event's index is that of its counterpart in the previous sweep.
+    fn sort_events(&mut self, edges: usize, same: bool) {
+        let keys = &mut self.sorted;
+        keys.clear();
+        if same && self.codes.len() == self.events.len() {
+            keys.extend(self.codes.iter().map(|&c| self.events[c as usize]));
+        } else {
+            self.lay_out_by_id(edges);
+        }
+        let keys = &mut self.sorted;
+        // Insertion sort: linear in the number of events plus the number
+        // of pairs out of order, which is small between neighbours. Past a
+        // budget of moves, a general sort finishes the job.
+        let budget = 4 * keys.len() + 64;
+        let mut moves = 0;
+        let mut i = 1;
+        while i < keys.len() && moves <= budget {
+            let x = keys[i];
+            let mut j = i;
+            while j > 0 && x < keys[j - 1] {
+                keys[j] = keys[j - 1];
+                j -= 1;
+            }
+            moves += i - j;
+            keys[j] = x;
+            i += 1;
+        }
+        if i < keys.len() {
+            keys.sort_unstable();
+        }
+        self.order.clear();
+        self.order.extend(keys.iter().map(|k| k.id()));
+        self.codes.clear();
+        self.codes.extend(keys.iter().map(|k| k.code()));
+        std::mem::swap(&mut self.events, &mut self.sorted);
+    }
+
+    /// Lays `events` out in the previous sweep's order by id (the events
+    /// of pieces that are new come last), into `sorted`.
+    fn lay_out_by_id(&mut self, edges: usize) {
+        self.slot.clear(edges * 4);
+        for (i, ev) in self.events.iter().enumerate() {
+            self.slot.set(ev.id() as usize, i as u32);
+        }
+        // Laid out in the previous order first, then the new ones; ties
+        // between equal keys and ids (a repeated candidate) by `code`.
+        let keys = &mut self.sorted;
+        for &id in &self.order {
+            if let Some(i) = self.slot.get(id as usize) {
+                keys.push(self.events[i as usize]);
+                self.slot.unset(id as usize);
+            }
+        }
+        for ev in &self.events {
+            if self.slot.get(ev.id() as usize).is_some() {
+                keys.push(*ev);
+            }
+        }
+        if keys.len() != self.events.len() {
+            // A repeated candidate gave two events one id: start afresh.
+            keys.clear();
+            keys.extend_from_slice(&self.events);
+        }
+    }
+}

@@ -1,0 +1,470 @@
+//! The output-sensitive walk: blocks of edges from near to far over an
+//! angular coverage buffer that skips what nearer surfaces already hide.
+
+use super::*;
+
+/// How an axis-aligned box lies as seen from a query.
+enum BoxView {
+    /// The query point is inside (or on) the box.
+    Around,
+    /// Entirely behind a half view.
+    Behind,
+    /// The pseudo-angle range, as one or two `[a, b]` ranges.
+    Ranges([(f64, f64); 2]),
+}
+
+fn box_range(q: &Query, x0: f64, y0: f64, x1: f64, y1: f64) -> BoxView {
+    let p = q.p;
+    if p[0] >= x0 && p[0] <= x1 && p[1] >= y0 && p[1] <= y1 {
+        return BoxView::Around;
+    }
+    let corners = [[x0, y0], [x1, y0], [x0, y1], [x1, y1]];
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    if q.full {
+        // The box holds part of the cut ray (+x from p): the range wraps.
+        if y0 < p[1] && p[1] < y1 && x0 > p[0] {
+            let (mut top, mut bottom) = (0.0f64, 4.0f64);
+            for c in corners {
+                let (u, v) = q.local(c);
+                if v >= 0.0 {
+                    top = top.max(diamond(u, v));
+                } else {
+                    bottom = bottom.min(diamond(u, v));
+                }
+            }
+            return BoxView::Ranges([(0.0, top), (bottom, 4.0)]);
+        }
+        for c in corners {
+            let (u, v) = q.local(c);
+            let k = diamond(u, v);
+            lo = lo.min(k);
+            hi = hi.max(k);
+        }
+    } else {
+        let mut any = false;
+        for c in corners {
+            let (u, v) = q.local(c);
+            // Corners behind the half-plane project onto its boundary.
+            let k = if v > 0.0 {
+                any = true;
+                diamond(u, v)
+            } else if u > 0.0 {
+                0.0
+            } else {
+                2.0
+            };
+            lo = lo.min(k);
+            hi = hi.max(k);
+        }
+        if !any {
+            return BoxView::Behind;
+        }
+    }
+    BoxView::Ranges([(lo, hi), (lo, hi)])
+}
+
+const NONE: u32 = u32::MAX;
+
+/// One interval of the angular buffer, `[previous end, end)`.
+#[derive(Clone, Copy, Debug)]
+struct Iv {
+    end: f64,
+    /// The vertex whose direction is `end`.
+    vend: [f64; 2],
+    /// Nearest piece found so far, or [`NONE`].
+    owner: u32,
+    /// Farthest distance of the owner over the interval (infinite if none).
+    far: f64,
+}
+
+/// The one-dimensional angular buffer of the walk: contiguous intervals of
+/// pseudo-angle covering the view, each owned by the nearest piece found so
+/// far (or none).
+#[derive(Default)]
+pub(super) struct Coverage {
+    iv: Vec<Iv>,
+    scratch: Vec<Iv>,
+}
+
+impl Coverage {
+    fn reset(&mut self, kmax: f64) {
+        self.iv.clear();
+        self.iv.push(Iv {
+            end: kmax,
+            vend: [0.0; 2],
+            owner: NONE,
+            far: f64::INFINITY,
+        });
+    }
+
+    #[inline]
+    fn start(&self, i: usize) -> f64 {
+        if i == 0 { 0.0 } else { self.iv[i - 1].end }
+    }
+
+    /// True when every direction in `[a, b]` already hits something nearer than `dmin`.
+    fn hides(&self, a: f64, b: f64, dmin: f64) -> bool {
+        let mut i = self.iv.partition_point(|v| v.end <= a);
+        while i < self.iv.len() && self.start(i) <= b {
+            let v = &self.iv[i];
+            // NaN distances count as not hidden.
+            if v.owner == NONE || v.far >= dmin || v.far.is_nan() {
+                return false;
+            }
+            i += 1;
+        }
+        true
+    }
+
+    /// Lets piece `pi` take every part of `[ka, kb)` where it is nearer.
+    fn insert(&mut self, pieces: &[Piece], pi: u32) {
+        let pc = pieces[pi as usize];
+        let n = self.iv.len();
+        let first = self.iv.partition_point(|v| v.end <= pc.ka);
+        // Quick rejection: hidden everywhere it overlaps.
+        let mut i = first;
+        let mut wins_any = false;
+        while i < n && self.start(i) < pc.kb {
+            let (lo, hi) = (self.start(i).max(pc.ka), self.iv[i].end.min(pc.kb));
+            let old = self.iv[i].owner;
+            if old == NONE || {
+                let (du, dv) = diamond_dir(0.5 * (lo + hi));
+                let o = &pieces[old as usize];
+                let (tp, to) = (pc.t(du, dv), o.t(du, dv));
+                tp < to || (tp == to && pi < old)
+            } {
+                wins_any = true;
+                break;
+            }
+            i += 1;
+        }
+        if !wins_any {
+            return;
+        }
+        let piece_far = |o: u32, k0: f64, k1: f64| {
+            if o == NONE {
+                f64::INFINITY
+            } else {
+                let p = &pieces[o as usize];
+                p.distance_at(k0).max(p.distance_at(k1))
+            }
+        };
+        // Rebuild the overlapped range (and merge with equal neighbours).
+        let mut a = first;
+        let mut i = first;
+        self.scratch.clear();
+        while i < n && self.start(i) < pc.kb {
+            let (s, v) = (self.start(i), self.iv[i]);
+            let (lo, hi) = (s.max(pc.ka), v.end.min(pc.kb));
+            let wins = v.owner == NONE || {
+                let (du, dv) = diamond_dir(0.5 * (lo + hi));
+                let o = &pieces[v.owner as usize];
+                let (tp, to) = (pc.t(du, dv), o.t(du, dv));
+                tp < to || (tp == to && pi < v.owner)
+            };
+            if lo > s {
+                self.scratch.push(Iv {
+                    end: lo,
+                    vend: pc.va,
+                    owner: v.owner,
+                    far: 0.0,
+                });
+            }
+            let vhi = if hi == pc.kb && hi < v.end {
+                pc.vb
+            } else {
+                v.vend
+            };
+            self.scratch.push(Iv {
+                end: hi,
+                vend: vhi,
+                owner: if wins { pi } else { v.owner },
+                far: 0.0,
+            });
+            if v.end > hi {
+                self.scratch.push(Iv {
+                    end: v.end,
+                    vend: v.vend,
+                    owner: v.owner,
+                    far: 0.0,
+                });
+            }
+            i += 1;
+        }
+        let mut b = i;
+        if a > 0 && self.iv[a - 1].owner == self.scratch[0].owner {
+            a -= 1;
+        }
+        if b < n && self.iv[b].owner == self.scratch[self.scratch.len() - 1].owner {
+            self.scratch.push(self.iv[b]);
+            b += 1;
+        }
+        // Consecutive pieces of one owner become one interval.
+        let mut out = Vec::with_capacity(self.scratch.len());
+        let mut seg_start = self.start(a);
+        for (j, t) in self.scratch.iter().enumerate() {
+            if self
+                .scratch
+                .get(j + 1)
+                .is_some_and(|next| next.owner == t.owner)
+            {
+                continue;
+            }
+            out.push(Iv {
+                far: piece_far(t.owner, seg_start, t.end),
+                ..*t
+            });
+            seg_start = t.end;
+        }
+        self.iv.splice(a..b, out);
+    }
+}
+
+/// Edges binned into square blocks, with a pyramid of counts above them,
+/// for [`Sweeper::walk`].
+pub struct Blocks {
+    size: i32,
+    /// `(nx, ny)` per level; level 0 are the blocks.
+    dims: Vec<(usize, usize)>,
+    /// Edge counts per node per level.
+    counts: Vec<Vec<u32>>,
+    /// Edges of block `b`: `list[start[b]..start[b + 1]]`.
+    start: Vec<usize>,
+    list: Vec<u32>,
+}
+
+impl Blocks {
+    pub const SIZE: i32 = 8;
+
+    pub fn new(g: &Geometry) -> Blocks {
+        let size = Self::SIZE;
+        let nx = g.width.div_ceil(size as usize).max(1);
+        let ny = g.height.div_ceil(size as usize).max(1);
+        let blocks_of = |e: &Edge| {
+            let (lo, hi) = e.extent();
+            let line = e.line() as i32;
+            let (a0, a1) = (
+                lo as i32 / size,
+                ((hi as i32 + size - 1) / size - 1).max(lo as i32 / size),
+            );
+            let l = line / size;
+            (a0, a1, l)
+        };
+        let mut count0 = vec![0usize; nx * ny + 1];
+        let id = |e: &Edge, a: i32, l: i32| {
+            let (bx, by) = if e.normal.is_vertical_edge() {
+                (l, a)
+            } else {
+                (a, l)
+            };
+            by.clamp(0, ny as i32 - 1) as usize * nx + bx.clamp(0, nx as i32 - 1) as usize
+        };
+        for e in &g.edges {
+            let (a0, a1, l) = blocks_of(e);
+            for a in a0..=a1 {
+                count0[id(e, a, l) + 1] += 1;
+            }
+        }
+        for i in 0..nx * ny {
+            count0[i + 1] += count0[i];
+        }
+        let start = count0.clone();
+        let mut fill = count0;
+        let mut list = vec![0u32; start[nx * ny]];
+        for (ei, e) in g.edges.iter().enumerate() {
+            let (a0, a1, l) = blocks_of(e);
+            for a in a0..=a1 {
+                let b = id(e, a, l);
+                list[fill[b]] = ei as u32;
+                fill[b] += 1;
+            }
+        }
+        let mut dims = vec![(nx, ny)];
+        let mut counts = vec![
+            (0..nx * ny)
+                .map(|b| (start[b + 1] - start[b]) as u32)
+                .collect::<Vec<u32>>(),
+        ];
+        while dims.last().is_some_and(|&(x, y)| x > 1 || y > 1) {
+            let (px, py) = *dims.last().expect("non-empty");
+            let (cx, cy) = (px.div_ceil(2), py.div_ceil(2));
+            let prev = counts.last().expect("non-empty");
+            let mut c = vec![0u32; cx * cy];
+            for y in 0..py {
+                for x in 0..px {
+                    c[(y / 2) * cx + x / 2] += prev[y * px + x];
+                }
+            }
+            dims.push((cx, cy));
+            counts.push(c);
+        }
+        Blocks {
+            size,
+            dims,
+            counts,
+            start,
+            list,
+        }
+    }
+}
+impl Sweeper {
+    /// Adds edge `ei`'s visible pieces to the coverage, once per walk.
+    #[inline]
+    fn insert_edge(&mut self, q: &Query, edges: &[Edge], ei: u32, wanted: Option<Wanted>) {
+        if !self.inserted.insert(ei as usize) {
+            return;
+        }
+        let from = self.pieces.len();
+        q.pieces(edges, ei, &mut self.pieces);
+        if let Some(w) = wanted {
+            Self::mark(&mut self.pieces[from..], w.at(edges, ei, None, q.p));
+        }
+        for pi in from..self.pieces.len() {
+            self.cover.insert(&self.pieces, pi as u32);
+        }
+    }
+
+    /// The same result as [`Sweeper::sweep`] over all edges within
+    /// `reach_max`, found by walking `blocks` from near to far and skipping
+    /// what is already hidden. `seeds` are inserted first: the edges a nearby
+    /// point saw fill the coverage early, so more of the walk is skipped (any
+    /// list gives the same result).
+    #[allow(clippy::too_many_arguments)]
+    pub fn walk(
+        &mut self,
+        edges: &[Edge],
+        blocks: &Blocks,
+        p: [f64; 2],
+        view: View,
+        comp: u32,
+        reach_max: f64,
+        seeds: &[u32],
+        out: &mut Vec<Span>,
+    ) {
+        self.walk_wanted(edges, blocks, p, view, comp, reach_max, seeds, None, out);
+    }
+
+    /// [`Sweeper::walk`], returning only the spans `wanted`; returns how
+    /// many spans of edges with light it left out.
+    #[allow(clippy::too_many_arguments)]
+    pub fn walk_wanted(
+        &mut self,
+        edges: &[Edge],
+        blocks: &Blocks,
+        p: [f64; 2],
+        view: View,
+        comp: u32,
+        reach_max: f64,
+        seeds: &[u32],
+        wanted: Option<Wanted>,
+        out: &mut Vec<Span>,
+    ) -> u64 {
+        let q = Query::new(p, view, comp);
+        self.pieces.clear();
+        self.cover.reset(q.kmax());
+        self.inserted.clear(edges.len());
+        for &ei in seeds {
+            self.insert_edge(&q, edges, ei, wanted);
+        }
+        let top = blocks.dims.len() - 1;
+        self.stack.clear();
+        self.stack.push((top as u8, 0, 0));
+        while let Some((level, x, y)) = self.stack.pop() {
+            let (nx, _) = blocks.dims[level as usize];
+            if blocks.counts[level as usize][y as usize * nx + x as usize] == 0 {
+                continue;
+            }
+            let side = (blocks.size << level) as f64;
+            let (x0, y0) = (x as f64 * side, y as f64 * side);
+            let (x1, y1) = (x0 + side, y0 + side);
+            let dx = (x0 - p[0]).max(p[0] - x1).max(0.0);
+            let dy = (y0 - p[1]).max(p[1] - y1).max(0.0);
+            let dmin = (dx * dx + dy * dy).sqrt();
+            if dmin > reach_max {
+                continue;
+            }
+            match box_range(&q, x0, y0, x1, y1) {
+                BoxView::Around => {}
+                BoxView::Behind => continue,
+                BoxView::Ranges(ranges) => {
+                    if ranges.iter().all(|&(a, b)| self.cover.hides(a, b, dmin)) {
+                        continue;
+                    }
+                }
+            }
+            if level == 0 {
+                let b = y as usize * nx + x as usize;
+                for &ei in &blocks.list[blocks.start[b]..blocks.start[b + 1]] {
+                    self.insert_edge(&q, edges, ei, wanted);
+                }
+                continue;
+            }
+            // Children, nearest popped first.
+            let (cnx, cny) = blocks.dims[level as usize - 1];
+            let mut kids: [(f64, u32, u32); 4] = [(f64::INFINITY, 0, 0); 4];
+            let mut k = 0;
+            for (cx, cy) in [
+                (2 * x, 2 * y),
+                (2 * x + 1, 2 * y),
+                (2 * x, 2 * y + 1),
+                (2 * x + 1, 2 * y + 1),
+            ] {
+                if (cx as usize) < cnx && (cy as usize) < cny {
+                    let half = side / 2.0;
+                    let (mx, my) = ((cx as f64 + 0.5) * half, (cy as f64 + 0.5) * half);
+                    kids[k] = ((mx - p[0]).powi(2) + (my - p[1]).powi(2), cx, cy);
+                    k += 1;
+                }
+            }
+            kids[..k].sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+            for &(_, cx, cy) in &kids[..k] {
+                self.stack.push((level - 1, cx, cy));
+            }
+        }
+        // Read the spans off the buffer (intervals of one owner are merged).
+        let cover = &self.cover;
+        let mut left_out = 0;
+        for i in 0..cover.iv.len() {
+            let o = cover.iv[i].owner;
+            if o == NONE {
+                continue;
+            }
+            let pc = &self.pieces[o as usize];
+            if !pc.lit {
+                left_out += u64::from(pc.dim);
+                continue;
+            }
+            let (k0, k1) = (cover.start(i), cover.iv[i].end);
+            let v0 = if i == 0 { pc.va } else { cover.iv[i - 1].vend };
+            self.emit(edges, p, o, k0, v0, k1, cover.iv[i].vend, out);
+        }
+        left_out
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn emit(
+        &self,
+        edges: &[Edge],
+        p: [f64; 2],
+        piece: u32,
+        k0: f64,
+        v0: [f64; 2],
+        k1: f64,
+        v1: [f64; 2],
+        out: &mut Vec<Span>,
+    ) {
+        let pc = &self.pieces[piece as usize];
+        let e = &edges[pc.edge as usize];
+        let (a, b) = (pc.axis_at(e, p, k0, v0), pc.axis_at(e, p, k1, v1));
+        let (s0, s1) = if a <= b { (a, b) } else { (b, a) };
+        if s1 > s0 {
+            out.push(Span {
+                edge: pc.edge,
+                s0,
+                s1,
+                k0,
+                k1,
+            });
+        }
+    }
+}
