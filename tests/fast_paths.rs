@@ -11,13 +11,31 @@ use common::*;
 
 use std::f64::consts::TAU;
 
-use flatbake_core::gather::{Kernel, PatchTree, PixelScratch, Radiosity, pixel_light};
+use flatbake_core::gather::{Kernel, Lighting, PatchTree, PixelScratch, Radiosity, pixel_light};
 use flatbake_core::geometry::trace;
 use flatbake_core::level::Level;
 use flatbake_core::transport::Patches;
 use flatbake_core::transport::kernel::Falloff;
-use flatbake_core::visibility::{Span, Sweeper, View};
+use flatbake_core::visibility::{Span, Sweeper, View, Viewpoint};
 use proptest::prelude::*;
+
+/// The flatland lighting of one solved level.
+fn lighting<'a>(
+    edges: &'a [flatbake_core::geometry::Edge],
+    patches: &'a Patches,
+    rad: &'a Radiosity,
+    tree: &'a PatchTree,
+    falloff: Option<Falloff>,
+) -> Lighting<'a> {
+    Lighting {
+        edges,
+        patches,
+        rad,
+        tree,
+        falloff,
+        kernel: Kernel::Flatland,
+    }
+}
 
 fn level_strategy() -> impl Strategy<Value = Level> {
     (4usize..28, 4usize..28, 0u8..4, any::<u64>()).prop_map(|(w, h, density, seed)| {
@@ -171,15 +189,15 @@ fn check_gather(
             };
             let p = [x as f64 + 0.5, y as f64 + 0.5];
             spans.clear();
-            sw.sweep(&g.edges, &all, p, View::Full, comp, &mut spans);
+            sw.sweep(
+                &g.edges,
+                &all,
+                Viewpoint::new(p, View::Full, comp),
+                &mut spans,
+            );
             let mut acc = vec![0.0; 2];
             pixel_light(
-                &g.edges,
-                &patches,
-                &rad,
-                &tree,
-                falloff,
-                Kernel::Flatland,
+                &lighting(&g.edges, &patches, &rad, &tree, falloff),
                 p,
                 &spans,
                 &mut acc,
@@ -256,7 +274,7 @@ proptest! {
                 if let Some(comp) = g.component_at(x as i64, y as i64) {
                     let p = [x as f64 + 0.5, y as f64 + 0.5];
                     let mut spans = Vec::new();
-                    sw.sweep(&g.edges, &all, p, View::Full, comp, &mut spans);
+                    sw.sweep(&g.edges, &all, Viewpoint::new(p, View::Full, comp), &mut spans);
                     points.push((p, spans));
                 }
             }
@@ -266,8 +284,7 @@ proptest! {
             let mut out = vec![0.0; points.len()];
             for &i in order {
                 let mut acc = [0.0];
-                pixel_light(&g.edges, &patches, &rad, &tree, falloff, Kernel::Flatland,
-                    points[i].0, &points[i].1, &mut acc, &mut scratch);
+                pixel_light(&lighting(&g.edges, &patches, &rad, &tree, falloff), points[i].0, &points[i].1, &mut acc, &mut scratch);
                 out[i] = acc[0];
             }
             out
@@ -285,9 +302,9 @@ proptest! {
         let mut used = PixelScratch::new();
         for (p, spans) in &points {
             let (mut first, mut second, mut fresh) = ([0.0], [0.0], [0.0]);
-            pixel_light(&g.edges, &patches, &rad, &tree, falloff, Kernel::Flatland, *p, spans, &mut first, &mut used);
-            pixel_light(&g.edges, &patches, &rad2, &tree2, falloff, Kernel::Flatland, *p, spans, &mut second, &mut used);
-            pixel_light(&g.edges, &patches, &rad2, &tree2, falloff, Kernel::Flatland, *p, spans, &mut fresh, &mut PixelScratch::new());
+            pixel_light(&lighting(&g.edges, &patches, &rad, &tree, falloff), *p, spans, &mut first, &mut used);
+            pixel_light(&lighting(&g.edges, &patches, &rad2, &tree2, falloff), *p, spans, &mut second, &mut used);
+            pixel_light(&lighting(&g.edges, &patches, &rad2, &tree2, falloff), *p, spans, &mut fresh, &mut PixelScratch::new());
             prop_assert_eq!(second[0].to_bits(), fresh[0].to_bits(), "point {:?}", p);
         }
     }
@@ -309,7 +326,7 @@ proptest! {
             .iter()
             .map(|&(p, comp)| {
                 let mut out = Vec::new();
-                Sweeper::new().sweep(&g.edges, &all, p, View::Full, comp, &mut out);
+                Sweeper::new().sweep(&g.edges, &all, Viewpoint::new(p, View::Full, comp), &mut out);
                 out
             })
             .collect();
@@ -319,7 +336,7 @@ proptest! {
         for &i in &order {
             let (p, comp) = points[i];
             let mut out = Vec::new();
-            sw.sweep(&g.edges, &all, p, View::Full, comp, &mut out);
+            sw.sweep(&g.edges, &all, Viewpoint::new(p, View::Full, comp), &mut out);
             prop_assert_eq!(&out, &fresh[i], "point {:?}", p);
         }
     }

@@ -6,7 +6,7 @@ use common::*;
 
 use flatbake_core::geometry::{Edge, trace};
 use flatbake_core::level::Level;
-use flatbake_core::visibility::{Blocks, Rect, Span, Sweeper, View, diamond};
+use flatbake_core::visibility::{Blocks, Rect, Span, Sweeper, View, Viewpoint, diamond};
 use proptest::prelude::*;
 
 fn level_strategy() -> impl Strategy<Value = Level> {
@@ -82,8 +82,8 @@ proptest! {
                 let Some(comp) = g.component_at(x as i64, y as i64) else { continue };
                 let p = [x as f64 + 0.5, y as f64 + 0.5];
                 let (mut a, mut b): (Vec<Span>, Vec<Span>) = (vec![], vec![]);
-                sw.sweep(&g.edges, &all, p, View::Full, comp, &mut a);
-                sw.walk(&g.edges, &blocks, p, View::Full, comp, f64::INFINITY, &[], &mut b);
+                sw.sweep(&g.edges, &all, Viewpoint::new(p, View::Full, comp), &mut a);
+                sw.walk(&blocks, Viewpoint::new(p, View::Full, comp), f64::INFINITY, &[], &mut b);
                 let (a, b) = (wide(&a), wide(&b));
                 prop_assert_eq!(a.len(), b.len(), "pixel ({}, {})", x, y);
                 for (s, t) in a.iter().zip(&b) {
@@ -122,8 +122,8 @@ proptest! {
             let s = lo + 0.3 * (hi - lo);
             let p = e.point_at(s);
             let (mut a, mut b): (Vec<Span>, Vec<Span>) = (vec![], vec![]);
-            sw.sweep(&g.edges, &all, p, View::Half(e.normal), e.component, &mut a);
-            sw.walk(&g.edges, &blocks, p, View::Half(e.normal), e.component, f64::INFINITY, &[], &mut b);
+            sw.sweep(&g.edges, &all, Viewpoint::new(p, View::Half(e.normal), e.component), &mut a);
+            sw.walk(&blocks, Viewpoint::new(p, View::Half(e.normal), e.component), f64::INFINITY, &[], &mut b);
             let (a, b) = (wide(&a), wide(&b));
             prop_assert_eq!(a.len(), b.len());
             for (s, t) in a.iter().zip(&b) {
@@ -256,7 +256,12 @@ fn culled_same_as_all(
     let mut sw = Sweeper::new();
     for i in 0..pos.len() {
         let mut want = Vec::new();
-        sw.sweep(&g.edges, &all, pos[i], view(i), comp(i), &mut want);
+        sw.sweep(
+            &g.edges,
+            &all,
+            Viewpoint::new(pos[i], view(i), comp(i)),
+            &mut want,
+        );
         let (got, want) = (kept(&got[i].lock().unwrap()), kept(&want));
         prop_assert_eq!(got.len(), want.len(), "point {:?}", pos[i]);
         for (s, t) in got.iter().zip(&want) {

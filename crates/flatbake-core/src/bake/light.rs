@@ -137,17 +137,14 @@ fn run(
     let (geometry, patches, settings) = (&scene.geometry, &scene.patches, ctx.settings);
     match settings.gather {
         GatherMethod::Fast => {
-            let (values, stats, counts) = gather::gather(
-                geometry,
-                patches,
-                rad,
-                ctx.falloff,
-                settings.kernel,
-                reached,
-                &rule.reach,
-                rule.threshold,
-                rule.decide,
-            );
+            let options = gather::GatherOptions {
+                falloff: ctx.falloff,
+                kernel: settings.kernel,
+                reach: &rule.reach,
+                tolerance: rule.threshold,
+                decide: rule.decide,
+            };
+            let (values, stats, counts) = gather::gather(geometry, patches, rad, reached, &options);
             if ctx.reach_bound > 0.0 && counts.pieces < counts.patch_pieces {
                 log.skip(
                     "distant patches",

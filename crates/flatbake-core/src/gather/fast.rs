@@ -72,25 +72,62 @@ struct PieceAt {
     off: f64,
 }
 
+/// What every pixel of one gather reads: the edges and their patches, the
+/// solved radiosity, the patch tree built from it, and how light travels.
+#[derive(Clone, Copy)]
+pub struct Lighting<'a> {
+    /// The level's edges.
+    pub edges: &'a [Edge],
+    /// The edges' patches.
+    pub patches: &'a Patches,
+    /// The solved radiosity on them.
+    pub rad: &'a Radiosity,
+    /// The reflected light, merged within the gather's tolerance.
+    pub tree: &'a PatchTree,
+    /// How light falls off with distance, if it does.
+    pub falloff: Option<Falloff>,
+    /// Which kernel turns radiosity into pixel light.
+    pub kernel: Kernel,
+}
+
+/// How a [`gather`] turns radiosity into pixel light, and how much it may
+/// merge and leave out.
+#[derive(Clone, Debug)]
+pub struct GatherOptions<'a> {
+    /// How light falls off with distance, if it does.
+    pub falloff: Option<Falloff>,
+    /// Which kernel turns radiosity into pixel light.
+    pub kernel: Kernel,
+    /// Per edge: beyond this distance its light is left out.
+    pub reach: &'a Reach,
+    /// Per-pixel error bound of merged reflected light (0: only exactly
+    /// quadratic runs merge).
+    pub tolerance: f64,
+    /// The components whose deviations decide what merges.
+    pub decide: std::ops::Range<usize>,
+}
+
 /// Adds to `acc` the light that pixel centre `p` receives from its visible
 /// spans (all of them: the falloff reach is applied by the visibility query,
 /// [`for_each_visibility`], which passes on only the spans within reach).
 /// Reflected light is gathered from `tree`'s nodes ([`PatchTree`]), as cut
 /// for `p`'s tile: `p` must be the centre of a pixel, since the cut's bound
 /// is taken at the tile's pixel centres.
-#[allow(clippy::too_many_arguments)]
 pub fn pixel_light(
-    edges: &[Edge],
-    patches: &Patches,
-    rad: &Radiosity,
-    tree: &PatchTree,
-    falloff: Option<Falloff>,
-    kernel: Kernel,
+    light: &Lighting,
     p: [f64; 2],
     spans: &[Span],
     acc: &mut [f64],
     scratch: &mut PixelScratch,
 ) -> GatherCounts {
+    let Lighting {
+        edges,
+        patches,
+        rad,
+        tree,
+        falloff,
+        kernel,
+    } = *light;
     let k = rad.components;
     let mut counts = GatherCounts::default();
     let sc = scratch;
@@ -124,7 +161,7 @@ pub fn pixel_light(
             sc.em_edge.push(span.edge);
         }
         if rad.edge_reflects[ei] {
-            reflected_pieces(patches, tree, edges, span, &line, foot, sc, &mut counts);
+            reflected_pieces(light, span, &line, foot, sc, &mut counts);
         }
     }
     let fall = falloff.is_some();
@@ -278,17 +315,15 @@ impl TileCuts {
 /// tile's cut of the edge's tree that overlap the span, clipped to it, in
 /// order along the edge. The span's start point goes into `sc.pts`, then
 /// each piece's end point; each piece goes into `sc.pieces`.
-#[allow(clippy::too_many_arguments)]
 fn reflected_pieces(
-    patches: &Patches,
-    tree: &PatchTree,
-    edges: &[Edge],
+    light: &Lighting,
     span: &Span,
     line: &GatherLine,
     foot: f64,
     sc: &mut PixelScratch,
     counts: &mut GatherCounts,
 ) {
+    let (patches, tree, edges) = (light.patches, light.tree, light.edges);
     let ei = span.edge as usize;
     let (lo, _) = edges[ei].extent();
     let h = patches.step[ei];
@@ -368,22 +403,39 @@ pub fn floor_pixels(level: &Level) -> Vec<[i32; 2]> {
 /// Fast gather: light at each of `pixels`, `components` values per pixel,
 /// and what was left out (beyond reach, or in regions no lit edge reaches).
 /// Distant reflected light is gathered in merged pieces whose total error
-/// per pixel is at most `tolerance` ([`PatchTree`], deviations measured
-/// over the components `decide`); how much was merged is counted.
-#[allow(clippy::too_many_arguments)]
+/// per pixel is at most the options' tolerance ([`PatchTree`]); how much was
+/// merged is counted.
 pub fn gather(
     geometry: &Geometry,
     patches: &Patches,
     rad: &Radiosity,
-    falloff: Option<Falloff>,
-    kernel: Kernel,
     pixels: &[[i32; 2]],
-    reach: &Reach,
-    tolerance: f64,
-    decide: std::ops::Range<usize>,
+    options: &GatherOptions,
 ) -> (Vec<f64>, VisitStats, GatherCounts) {
+    let GatherOptions {
+        falloff,
+        kernel,
+        reach,
+        tolerance,
+        ref decide,
+    } = *options;
     let k = rad.components;
-    let tree = PatchTree::new(&geometry.edges, patches, rad, decide, falloff, tolerance);
+    let tree = PatchTree::new(
+        &geometry.edges,
+        patches,
+        rad,
+        decide.clone(),
+        falloff,
+        tolerance,
+    );
+    let light = Lighting {
+        edges: &geometry.edges,
+        patches,
+        rad,
+        tree: &tree,
+        falloff,
+        kernel,
+    };
     let mut out = vec![0.0; pixels.len() * k];
     let pos: Vec<[f64; 2]> = pixels
         .iter()
@@ -413,20 +465,8 @@ pub fn gather(
                 big.resize(k, 0.0);
                 &mut big[..]
             };
-            let c = SCRATCH.with(|sc| {
-                pixel_light(
-                    &geometry.edges,
-                    patches,
-                    rad,
-                    &tree,
-                    falloff,
-                    kernel,
-                    pos[i],
-                    spans,
-                    acc,
-                    &mut sc.borrow_mut(),
-                )
-            });
+            let c =
+                SCRATCH.with(|sc| pixel_light(&light, pos[i], spans, acc, &mut sc.borrow_mut()));
             let c = [c.pieces, c.patch_pieces].map(|v| v.min(u32::MAX as u64) as u32);
             // SAFETY: each pixel index is visited exactly once.
             unsafe { shared_merged.write(i, c) };

@@ -16,7 +16,9 @@ mod fast;
 mod naive;
 mod patch_tree;
 
-pub use fast::{GatherCounts, PixelScratch, floor_pixels, gather, pixel_light};
+pub use fast::{
+    GatherCounts, GatherOptions, Lighting, PixelScratch, floor_pixels, gather, pixel_light,
+};
 pub use naive::gather_naive;
 pub use patch_tree::PatchTree;
 

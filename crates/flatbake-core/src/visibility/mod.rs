@@ -236,6 +236,26 @@ fn diamond_dir(k: f64) -> (f64, f64) {
     }
 }
 
+/// Where a visibility query looks from: a point, what it looks into, and
+/// the free-space component it lies in (edges of other components are never
+/// seen, whatever the geometry says).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Viewpoint {
+    /// The query point.
+    pub p: [f64; 2],
+    /// The directions it looks into.
+    pub view: View,
+    /// Its free-space component ([`Edge::component`] of the edges it may see).
+    pub comp: u32,
+}
+
+impl Viewpoint {
+    /// A viewpoint at `p` looking into `view` in free-space component `comp`.
+    pub fn new(p: [f64; 2], view: View, comp: u32) -> Viewpoint {
+        Viewpoint { p, view, comp }
+    }
+}
+
 /// A query: the point, what it looks into, and its free-space component.
 #[derive(Clone, Copy, Debug)]
 struct Query {
@@ -249,7 +269,7 @@ struct Query {
 }
 
 impl Query {
-    fn new(p: [f64; 2], view: View, comp: u32) -> Query {
+    fn new(Viewpoint { p, view, comp }: Viewpoint) -> Query {
         let (eu, ev) = match view {
             View::Full => ([1.0, 0.0], [0.0, 1.0]),
             View::Half(n) => {
@@ -300,7 +320,6 @@ impl Query {
     /// (`s`: axis coordinate on the edge), ordered by pseudo-angle; none if
     /// it is seen edge-on.
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
     fn push_piece(
         &self,
         out: &mut Vec<Piece>,

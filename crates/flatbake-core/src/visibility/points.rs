@@ -5,7 +5,9 @@
 use std::cell::RefCell;
 
 use crate::geometry::Geometry;
-use crate::visibility::{Blocks, Reachable, Rect, Span, Sweeper, TileTree, View, Wanted};
+use crate::visibility::{
+    Blocks, Reachable, Rect, Span, Sweeper, TileTree, View, Viewpoint, Wanted,
+};
 
 /// Query points bucketed by leaf tile, with a summed-area table to answer
 /// "does this rectangle hold any point" in constant time.
@@ -165,9 +167,7 @@ where
                             dropped += sweeper.sweep_wanted(
                                 &geometry.edges,
                                 cands,
-                                pos[i],
-                                view(i),
-                                comp,
+                                Viewpoint::new(pos[i], view(i), comp),
                                 reach2.map(|reach2| Wanted { reach2, class }),
                                 spans,
                             )
@@ -177,11 +177,8 @@ where
                                 seeds.clear();
                             }
                             dropped += sweeper.walk_wanted(
-                                &geometry.edges,
                                 &blocks,
-                                pos[i],
-                                view(i),
-                                comp,
+                                Viewpoint::new(pos[i], view(i), comp),
                                 reach_max,
                                 seeds,
                                 reach2.map(|reach2| Wanted {

@@ -3,35 +3,31 @@
 use super::*;
 
 impl Sweeper {
-    /// The visible spans seen from `p` looking into `view`, among `candidates`
-    /// (indices into `edges`) that belong to free-space component `comp`.
-    /// Spans are appended to `out` in increasing pseudo-angle.
+    /// The visible spans seen from `at`, among `candidates` (indices into
+    /// `edges`) that belong to its free-space component. Spans are appended
+    /// to `out` in increasing pseudo-angle.
     pub fn sweep(
         &mut self,
         edges: &[Edge],
         candidates: &[u32],
-        p: [f64; 2],
-        view: View,
-        comp: u32,
+        at: Viewpoint,
         out: &mut Vec<Span>,
     ) {
-        self.sweep_wanted(edges, candidates, p, view, comp, None, out);
+        self.sweep_wanted(edges, candidates, at, None, out);
     }
 
     /// [`Sweeper::sweep`], returning only the spans `wanted`; returns how
     /// many spans of edges with light it left out.
-    #[allow(clippy::too_many_arguments)]
     pub fn sweep_wanted(
         &mut self,
         edges: &[Edge],
         candidates: &[u32],
-        p: [f64; 2],
-        view: View,
-        comp: u32,
+        at: Viewpoint,
         wanted: Option<Wanted>,
         out: &mut Vec<Span>,
     ) -> u64 {
-        let q = Query::new(p, view, comp);
+        let q = Query::new(at);
+        let p = at.p;
         self.pieces.clear();
         self.events.clear();
         for (j, &ei) in candidates.iter().enumerate() {
@@ -155,7 +151,7 @@ impl Sweeper {
             current = nearest;
             if open.map(|o| o.0) != shown {
                 if let Some((pc, k0, v0)) = open.take() {
-                    self.emit(edges, p, pc, k0, v0, key, vertex, out);
+                    self.emit(edges, p, pc, (k0, v0), (key, vertex), out);
                 }
                 if let Some(pc) = shown {
                     open = Some((pc, key, vertex));

@@ -6,6 +6,15 @@ use super::*;
 /// Query points per rectangle, to weigh culled pairs (0: nothing to do there).
 pub type Count<'a> = &'a (dyn Fn(Rect) -> u64 + Sync);
 
+/// What stays the same all the way down one [`TileTree::for_each_leaf`].
+struct Descent<'a, V> {
+    count: Count<'a>,
+    reach_max: f64,
+    /// (edge, point) pairs dropped as beyond `reach_max`, so far.
+    culled: std::sync::atomic::AtomicU64,
+    visit: &'a V,
+}
+
 /// Candidate edge lists for square tiles of pixels.
 pub struct TileTree<'g> {
     pub geometry: &'g Geometry,
@@ -204,26 +213,28 @@ impl<'g> TileTree<'g> {
             y1: g.height as i32,
         };
         let all: Vec<u32> = (0..g.edges.len() as u32).collect();
-        let culled = std::sync::atomic::AtomicU64::new(0);
-        self.node(root, size, Some(&all), count, reach_max, &culled, visit);
-        culled.into_inner()
+        let descent = Descent {
+            count,
+            reach_max,
+            culled: std::sync::atomic::AtomicU64::new(0),
+            visit,
+        };
+        self.node(root, size, Some(&all), &descent);
+        descent.culled.into_inner()
     }
 
     /// `parent`: the parent's candidates, or `None` when they were too many
     /// to be worth refining (the subtree walks).
-    #[allow(clippy::too_many_arguments)]
-    fn node<V>(
-        &self,
-        r: Rect,
-        size: i32,
-        parent: Option<&[u32]>,
-        count: Count,
-        reach_max: f64,
-        culled: &std::sync::atomic::AtomicU64,
-        visit: &V,
-    ) where
+    fn node<V>(&self, r: Rect, size: i32, parent: Option<&[u32]>, descent: &Descent<V>)
+    where
         V: Fn(&LeafRegions) + Sync,
     {
+        let Descent {
+            count,
+            reach_max,
+            ref culled,
+            visit,
+        } = *descent;
         let points = if r.is_empty() { 0 } else { count(r) };
         if points == 0 {
             return;
@@ -284,7 +295,7 @@ impl<'g> TileTree<'g> {
         rayon::scope(|s| {
             for k in kids {
                 let cands = cands.as_deref();
-                s.spawn(move |_| self.node(k, h, cands, count, reach_max, culled, visit));
+                s.spawn(move |_| self.node(k, h, cands, descent));
             }
         });
     }
@@ -351,7 +362,7 @@ impl<'g> TileTree<'g> {
         for &(comp, _, px) in reps {
             let q = [px[0] as f64 + 0.5, px[1] as f64 + 0.5];
             spans.clear();
-            sweeper.sweep(&g.edges, cands, q, View::Full, comp, spans);
+            sweeper.sweep(&g.edges, cands, Viewpoint::new(q, View::Full, comp), spans);
             if spans.is_empty() {
                 continue;
             }

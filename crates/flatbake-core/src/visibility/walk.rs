@@ -222,7 +222,9 @@ impl Coverage {
 
 /// Edges binned into square blocks, with a pyramid of counts above them,
 /// for [`Sweeper::walk`].
-pub struct Blocks {
+pub struct Blocks<'g> {
+    /// The edges binned (the geometry's).
+    edges: &'g [Edge],
     size: i32,
     /// `(nx, ny)` per level; level 0 are the blocks.
     dims: Vec<(usize, usize)>,
@@ -233,10 +235,10 @@ pub struct Blocks {
     list: Vec<u32>,
 }
 
-impl Blocks {
+impl<'g> Blocks<'g> {
     pub const SIZE: i32 = 8;
 
-    pub fn new(g: &Geometry) -> Blocks {
+    pub fn new(g: &'g Geometry) -> Blocks<'g> {
         let size = Self::SIZE;
         let nx = g.width.div_ceil(size as usize).max(1);
         let ny = g.height.div_ceil(size as usize).max(1);
@@ -299,6 +301,7 @@ impl Blocks {
             counts.push(c);
         }
         Blocks {
+            edges: &g.edges,
             size,
             dims,
             counts,
@@ -329,37 +332,30 @@ impl Sweeper {
     /// what is already hidden. `seeds` are inserted first: the edges a nearby
     /// point saw fill the coverage early, so more of the walk is skipped (any
     /// list gives the same result).
-    #[allow(clippy::too_many_arguments)]
     pub fn walk(
         &mut self,
-        edges: &[Edge],
         blocks: &Blocks,
-        p: [f64; 2],
-        view: View,
-        comp: u32,
+        at: Viewpoint,
         reach_max: f64,
         seeds: &[u32],
         out: &mut Vec<Span>,
     ) {
-        self.walk_wanted(edges, blocks, p, view, comp, reach_max, seeds, None, out);
+        self.walk_wanted(blocks, at, reach_max, seeds, None, out);
     }
 
     /// [`Sweeper::walk`], returning only the spans `wanted`; returns how
     /// many spans of edges with light it left out.
-    #[allow(clippy::too_many_arguments)]
     pub fn walk_wanted(
         &mut self,
-        edges: &[Edge],
         blocks: &Blocks,
-        p: [f64; 2],
-        view: View,
-        comp: u32,
+        at: Viewpoint,
         reach_max: f64,
         seeds: &[u32],
         wanted: Option<Wanted>,
         out: &mut Vec<Span>,
     ) -> u64 {
-        let q = Query::new(p, view, comp);
+        let (edges, p) = (blocks.edges, at.p);
+        let q = Query::new(at);
         self.pieces.clear();
         self.cover.reset(q.kmax());
         self.inserted.clear(edges.len());
@@ -436,21 +432,18 @@ impl Sweeper {
             }
             let (k0, k1) = (cover.start(i), cover.iv[i].end);
             let v0 = if i == 0 { pc.va } else { cover.iv[i - 1].vend };
-            self.emit(edges, p, o, k0, v0, k1, cover.iv[i].vend, out);
+            self.emit(edges, p, o, (k0, v0), (k1, cover.iv[i].vend), out);
         }
         left_out
     }
 
-    #[allow(clippy::too_many_arguments)]
     pub(super) fn emit(
         &self,
         edges: &[Edge],
         p: [f64; 2],
         piece: u32,
-        k0: f64,
-        v0: [f64; 2],
-        k1: f64,
-        v1: [f64; 2],
+        (k0, v0): (f64, [f64; 2]),
+        (k1, v1): (f64, [f64; 2]),
         out: &mut Vec<Span>,
     ) {
         let pc = &self.pieces[piece as usize];
