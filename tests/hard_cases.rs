@@ -998,3 +998,23 @@ fn jobs_1_and_jobs_2_write_identical_bytes() {
         }
     }
 }
+
+/// A system that neither Cholesky nor LU can factor (two perfect mirrors
+/// that see only each other, with effective lengths that make `D / rho - S`
+/// singular) is an error, not an answer of zeros.
+#[test]
+fn a_singular_system_is_an_error_not_zeros() {
+    let ff = flatbake_core::transport::FormFactors {
+        row_ptr: vec![0, 1, 2],
+        col: vec![1, 0],
+        val: vec![1.0, 1.0],
+        dlen: vec![1.0, 1.0],
+        coverage: vec![0.5, 0.5],
+    };
+    let (rho, e) = (vec![1.0, 1.0], vec![1.0, 0.0]);
+    match solve_channel(&ff, &rho, &e, &SolveSettings::default()) {
+        Err(SolveError::Singular { unknowns }) => assert_eq!(unknowns, 2),
+        Ok(sol) => panic!("a singular system was solved: {:?} via {}", sol.radiosity, sol.method),
+        Err(other) => panic!("{other}"),
+    }
+}

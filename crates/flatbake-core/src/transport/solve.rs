@@ -64,6 +64,10 @@ pub enum SolveError {
         "the solver did not converge: relative residual {residual:.3e} after {iterations} iterations"
     )]
     NotConverged { residual: f64, iterations: usize },
+    #[error(
+        "the system for {unknowns} patches is singular (neither Cholesky nor LU could factor it): the form factors are inconsistent"
+    )]
+    Singular { unknowns: usize },
 }
 
 /// Residual of the original system, `|E - (I - rho F) B|_2 / |E|_2`.
@@ -337,14 +341,14 @@ pub fn solve_channel(
             ..sub
         });
     } else if sys.len() <= set.direct_max {
-        (direct(&sys), "cholesky", 0)
+        (direct(&sys)?, "cholesky", 0)
     } else {
         let max_iter = 50 + 4 * (sys.len() as f64).sqrt() as usize;
         let (x, rel, it) = pcg(&sys, None, set.tolerance, max_iter);
         if rel <= set.tolerance {
             (x, "cg", it)
         } else if sys.len() <= set.fallback_max {
-            (direct(&sys), "cg-then-cholesky", it)
+            (direct(&sys)?, "cg-then-cholesky", it)
         } else {
             let (x2, rel2, it2) = pcg(&sys, Some(&x), set.tolerance, 20 * max_iter);
             if rel2 > set.tolerance.max(1e-6) {
@@ -368,15 +372,19 @@ pub fn solve_channel(
     })
 }
 
-fn direct(sys: &System) -> Vec<f64> {
+/// Dense Cholesky, or LU if rounding made the matrix lose definiteness; a
+/// matrix neither can factor is an error, never a made-up answer.
+fn direct(sys: &System) -> Result<Vec<f64>, SolveError> {
     let m = sys.dense();
     let rhs = DVector::from_column_slice(&sys.rhs);
     match m.clone().cholesky() {
-        Some(ch) => ch.solve(&rhs).as_slice().to_vec(),
+        Some(ch) => Ok(ch.solve(&rhs).as_slice().to_vec()),
         None => m
             .lu()
             .solve(&rhs)
             .map(|v| v.as_slice().to_vec())
-            .unwrap_or_else(|| vec![0.0; sys.len()]),
+            .ok_or(SolveError::Singular {
+                unknowns: sys.len(),
+            }),
     }
 }
