@@ -1014,7 +1014,10 @@ fn a_singular_system_is_an_error_not_zeros() {
     let (rho, e) = (vec![1.0, 1.0], vec![1.0, 0.0]);
     match solve_channel(&ff, &rho, &e, &SolveSettings::default()) {
         Err(SolveError::Singular { unknowns }) => assert_eq!(unknowns, 2),
-        Ok(sol) => panic!("a singular system was solved: {:?} via {}", sol.radiosity, sol.method),
+        Ok(sol) => panic!(
+            "a singular system was solved: {:?} via {}",
+            sol.radiosity, sol.method
+        ),
         Err(other) => panic!("{other}"),
     }
 }

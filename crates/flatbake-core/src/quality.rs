@@ -35,6 +35,7 @@ pub struct Knobs {
 }
 
 impl Quality {
+    /// Every preset, cheapest first.
     pub const ALL: [Quality; 4] = [
         Quality::Draft,
         Quality::Normal,
@@ -42,6 +43,7 @@ impl Quality {
         Quality::Reference,
     ];
 
+    /// The numeric knobs behind the preset.
     pub fn knobs(self) -> Knobs {
         match self {
             Quality::Draft => Knobs {
@@ -71,6 +73,7 @@ impl Quality {
         }
     }
 
+    /// The preset's name, as on the command line and in reports.
     pub fn name(self) -> &'static str {
         match self {
             Quality::Draft => "draft",

@@ -57,6 +57,7 @@ pub struct PixelScratch {
 }
 
 impl PixelScratch {
+    /// Empty scratch; it grows to what the pixels need.
     pub fn new() -> Self {
         Self::default()
     }

@@ -28,6 +28,7 @@ use crate::transport::Patches;
 /// (uniform emission) and per patch (reflected light `B - E`).
 #[derive(Clone, Debug)]
 pub struct Radiosity {
+    /// Values per edge and per patch (channels, or lights for responses).
     pub components: usize,
     /// `edge_emission[e * components + k]`.
     pub edge_emission: Vec<f64>,

@@ -22,9 +22,13 @@ use crate::level::{Cell, Level};
 /// Image coordinates: x to the right, y down, so `Up` is `-y`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum Normal {
+    /// Free space to the left (`-x`).
     Left,
+    /// Free space to the right (`+x`).
     Right,
+    /// Free space above (`-y`).
     Up,
+    /// Free space below (`+y`).
     Down,
 }
 
@@ -59,6 +63,7 @@ impl Normal {
         }
     }
 
+    /// The four normals.
     pub const ALL: [Normal; 4] = [Normal::Left, Normal::Right, Normal::Up, Normal::Down];
 }
 
@@ -67,7 +72,9 @@ impl Normal {
 pub struct Edge {
     /// Start and end points in level units, `a -> b` with the normal on the right.
     pub a: [i32; 2],
+    /// End point (see `a`).
     pub b: [i32; 2],
+    /// Which side the free space is on.
     pub normal: Normal,
     /// Index into [`Level::materials`].
     pub material: u16,
@@ -80,10 +87,12 @@ pub struct Edge {
 }
 
 impl Edge {
+    /// Length in level units (edges are axis-aligned).
     pub fn len(&self) -> f64 {
         ((self.b[0] - self.a[0]).abs() + (self.b[1] - self.a[1]).abs()) as f64
     }
 
+    /// Has zero length.
     pub fn is_empty(&self) -> bool {
         self.a == self.b
     }
@@ -173,9 +182,13 @@ pub struct Loop {
 /// A merged edge as it sits in its loop.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct LoopEdge {
+    /// Start point, level units.
     pub a: [i32; 2],
+    /// End point, level units.
     pub b: [i32; 2],
+    /// Which side the free space is on.
     pub normal: Normal,
+    /// Index into [`Level::materials`].
     pub material: u16,
     /// Index into [`Geometry::edges`], or `None` when the edge faces out of the image.
     pub transport: Option<u32>,
@@ -185,24 +198,32 @@ pub struct LoopEdge {
 /// whatever their materials. Used to prove that whole regions are hidden.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Run {
+    /// Which side the free space is on.
     pub normal: Normal,
     /// Line coordinate (`x` for vertical runs).
     pub line: i32,
+    /// First coordinate along the line covered.
     pub lo: i32,
+    /// Last coordinate along the line covered.
     pub hi: i32,
 }
 
 /// The traced level.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Geometry {
+    /// Level width in pixels.
     pub width: usize,
+    /// Level height in pixels.
     pub height: usize,
     /// Transport edges: every merged edge that faces into the image.
     pub edges: Vec<Edge>,
+    /// Closed boundary loops between solid pixels and the rest, each traced once.
     pub loops: Vec<Loop>,
+    /// Straight occluder runs, for culling ([`crate::visibility::run_hides`]).
     pub runs: Vec<Run>,
     /// Component label per pixel (`u32::MAX` for solid pixels).
     pub components: Vec<u32>,
+    /// Number of free-space components.
     pub component_count: u32,
 }
 

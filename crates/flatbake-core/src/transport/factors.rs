@@ -57,8 +57,11 @@ pub fn point_factors(
 /// and the effective lengths `D`: `F_ij = S_ij / D_i`.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct FormFactors {
+    /// Row starts of `S` (CSR).
     pub row_ptr: Vec<usize>,
+    /// Column (patch) of each stored entry.
     pub col: Vec<u32>,
+    /// `S_ij` of each stored entry.
     pub val: Vec<f64>,
     /// Effective lengths `D_i`.
     pub dlen: Vec<f64>,
@@ -68,10 +71,12 @@ pub struct FormFactors {
 }
 
 impl FormFactors {
+    /// Number of patches.
     pub fn n(&self) -> usize {
         self.dlen.len()
     }
 
+    /// Number of stored entries.
     pub fn nnz(&self) -> usize {
         self.val.len()
     }
@@ -177,9 +182,13 @@ impl FormFactors {
 /// `B(x) = E + rho * sum_j K(x, j) B_j`, from which each patch gets a slope.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct PointRows {
+    /// Quadrature points per patch.
     pub q: usize,
+    /// Row starts, one row per quadrature point (CSR).
     pub row_ptr: Vec<usize>,
+    /// Patch of each entry.
     pub col: Vec<u32>,
+    /// `K(x, j)` of each entry.
     pub val: Vec<f64>,
 }
 

@@ -253,6 +253,7 @@ pub struct GatherLine {
 
 impl GatherLine {
     #[inline]
+    /// The line at distance `d` from the pixel, with `falloff`.
     pub fn new(d: f64, falloff: Option<Falloff>) -> Self {
         GatherLine {
             d,
@@ -320,6 +321,7 @@ impl GatherLine {
 /// the per-point line constants are spread out once, before evaluating.
 #[derive(Clone, Debug, Default)]
 pub struct GatherPoints {
+    /// Offset of each point from the foot of its line.
     pub t: Vec<f64>,
     d: Vec<f64>,
     c: Vec<f64>,
@@ -329,15 +331,18 @@ pub struct GatherPoints {
 }
 
 impl GatherPoints {
+    /// Forgets every point and line.
     pub fn clear(&mut self) {
         self.t.clear();
         self.lines.clear();
     }
 
+    /// Number of points.
     pub fn len(&self) -> usize {
         self.t.len()
     }
 
+    /// No points.
     pub fn is_empty(&self) -> bool {
         self.t.is_empty()
     }
@@ -502,6 +507,7 @@ pub struct FactorLine {
 
 impl FactorLine {
     #[inline]
+    /// The line at distance `d`, with direction cosines `alpha` and `beta` of the source and target axes, and `falloff`.
     pub fn new(d: f64, alpha: f64, beta: f64, falloff: Option<Falloff>) -> Self {
         FactorLine {
             d,

@@ -35,14 +35,17 @@ impl Patches {
         Patches { first, step, edge }
     }
 
+    /// Number of patches.
     pub fn len(&self) -> usize {
         self.edge.len()
     }
 
+    /// No patches (a level without walls).
     pub fn is_empty(&self) -> bool {
         self.edge.is_empty()
     }
 
+    /// The patches of edge `e`, in order along it.
     pub fn of_edge(&self, e: usize) -> Range<usize> {
         self.first[e] as usize..self.first[e + 1] as usize
     }
@@ -107,6 +110,7 @@ pub fn axis_vec(n: Normal) -> [f64; 2] {
     }
 }
 
+/// Unit normal of an edge, as floats.
 pub fn normal_vec(n: Normal) -> [f64; 2] {
     let v = n.vec();
     [v[0] as f64, v[1] as f64]

@@ -46,28 +46,45 @@ impl Default for SolveSettings {
 /// The solution of one channel.
 #[derive(Clone, Debug)]
 pub struct ChannelSolution {
+    /// Radiosity per patch (emission only where `rho = 0`).
     pub radiosity: Vec<f64>,
     /// `|E - (I - rho F) B|_2 / |E|_2` of the original system.
     pub residual: f64,
+    /// Which solver produced it (`cholesky`, `cg`, `cg-then-cholesky`, `none`).
     pub method: &'static str,
+    /// Conjugate-gradient iterations (0 for a direct solve).
     pub iterations: usize,
 }
 
 /// Why a channel has no answer.
 #[derive(Debug, thiserror::Error)]
 pub enum SolveError {
+    /// A closed perfect mirror with light in it.
     #[error(
         "a closed region reflects all light (reflectance 1) and emits: its radiosity is unbounded; patches {patches:?}"
     )]
-    Unbounded { patches: Vec<usize> },
+    Unbounded {
+        /// The patches of the region.
+        patches: Vec<usize>,
+    },
+    /// Conjugate gradients stalled and no direct solve was allowed.
     #[error(
         "the solver did not converge: relative residual {residual:.3e} after {iterations} iterations"
     )]
-    NotConverged { residual: f64, iterations: usize },
+    NotConverged {
+        /// Relative residual reached.
+        residual: f64,
+        /// Iterations spent.
+        iterations: usize,
+    },
+    /// Neither Cholesky nor LU could factor the system.
     #[error(
         "the system for {unknowns} patches is singular (neither Cholesky nor LU could factor it): the form factors are inconsistent"
     )]
-    Singular { unknowns: usize },
+    Singular {
+        /// Unknowns of the system.
+        unknowns: usize,
+    },
 }
 
 /// Residual of the original system, `|E - (I - rho F) B|_2 / |E|_2`.

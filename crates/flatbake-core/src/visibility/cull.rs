@@ -7,19 +7,26 @@ use super::*;
 /// the plane it is the closed rectangle `[x0, x1] x [y0, y1]`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Rect {
+    /// Left column (inclusive).
     pub x0: i32,
+    /// Top row (inclusive).
     pub y0: i32,
+    /// Right column (exclusive).
     pub x1: i32,
+    /// Bottom row (exclusive).
     pub y1: i32,
 }
 
 impl Rect {
+    /// Columns covered.
     pub fn width(&self) -> i32 {
         self.x1 - self.x0
     }
+    /// Rows covered.
     pub fn height(&self) -> i32 {
         self.y1 - self.y0
     }
+    /// Covers no pixel.
     pub fn is_empty(&self) -> bool {
         self.x1 <= self.x0 || self.y1 <= self.y0
     }
@@ -67,9 +74,13 @@ impl Rect {
 /// centres when every query point is a pixel centre (a floor gather).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Zone {
+    /// Left side, half pixels.
     pub x0: i64,
+    /// Top side, half pixels.
     pub y0: i64,
+    /// Right side, half pixels.
     pub x1: i64,
+    /// Bottom side, half pixels.
     pub y1: i64,
 }
 

@@ -34,6 +34,7 @@ impl<T: Copy + Default> Marks<T> {
     }
 
     #[inline]
+    /// No items.
     pub fn is_empty(&self) -> bool {
         self.slots.is_empty()
     }
@@ -49,6 +50,7 @@ impl<T: Copy + Default> Marks<T> {
     }
 
     #[inline]
+    /// Sets item `i`'s value until the next clear.
     pub fn set(&mut self, i: usize, v: T) {
         self.slots[i] = (self.generation, v);
     }

@@ -62,11 +62,16 @@ pub enum View {
 /// coordinates `s0` and `s1` of that edge (`s0 < s1`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Span {
+    /// The edge seen (index into the geometry's edges).
     pub edge: u32,
+    /// Start of the visible stretch, axis coordinate along the edge.
     pub s0: f64,
+    /// End of the visible stretch (`s0 < s1`).
     pub s1: f64,
-    /// Pseudo-angles of the span's boundaries as seen from the query point.
+    /// Pseudo-angle, seen from the query point, of the boundary through `s0`
+    /// or `s1` that comes first ([`diamond`]; `k0 < k1`).
     pub k0: f64,
+    /// Pseudo-angle of the other boundary.
     pub k1: f64,
 }
 
@@ -415,6 +420,7 @@ impl Query {
 /// walls that only hide other walls.
 #[derive(Clone, Copy, Debug)]
 pub struct Wanted<'a> {
+    /// Per edge: squared reach (negative: the edge has no light).
     pub reach2: &'a [f64],
     /// For a sweep, optionally: per candidate, what holds for the query's
     /// whole region ([`Wanted::classify`]), so that only the candidates
@@ -514,6 +520,7 @@ pub struct Sweeper {
 }
 
 impl Sweeper {
+    /// Empty buffers; they grow to what the queries need.
     pub fn new() -> Self {
         Self::default()
     }

@@ -17,6 +17,7 @@ struct Descent<'a, V> {
 
 /// Candidate edge lists for square tiles of pixels.
 pub struct TileTree<'g> {
+    /// The geometry whose edges the lists index.
     pub geometry: &'g Geometry,
     /// Side of a leaf tile in pixels.
     pub leaf: i32,
@@ -32,9 +33,11 @@ pub struct TileTree<'g> {
 /// are 4-connected inside the tile, each with its own candidate edges. A
 /// corridor on one side of a wall is culled without the pixels beyond it.
 pub struct LeafRegions {
+    /// The leaf tile.
     pub rect: Rect,
     /// Region of each pixel of `rect`, row-major; `u8::MAX` for solid pixels.
     pub label: Vec<u8>,
+    /// The regions, indexed by `label`.
     pub regions: Vec<Region>,
 }
 
@@ -42,6 +45,7 @@ pub struct LeafRegions {
 pub struct Region {
     /// Bounding box of the region's pixels.
     pub bbox: Rect,
+    /// Free-space component of its pixels.
     pub component: u32,
     /// A short candidate list for [`Sweeper::sweep`], or `None`: use [`Sweeper::walk`].
     pub candidates: Option<Vec<u32>>,
@@ -67,6 +71,7 @@ impl LeafRegions {
 }
 
 impl<'g> TileTree<'g> {
+    /// Side of a leaf tile in pixels.
     pub const LEAF: i32 = 8;
 
     /// Longest candidate list a region sweeps; longer ones walk the blocks.

@@ -236,8 +236,10 @@ pub struct Blocks<'g> {
 }
 
 impl<'g> Blocks<'g> {
+    /// Side of a block in pixels.
     pub const SIZE: i32 = 8;
 
+    /// Bins the edges of `g`.
     pub fn new(g: &'g Geometry) -> Blocks<'g> {
         let size = Self::SIZE;
         let nx = g.width.div_ceil(size as usize).max(1);
