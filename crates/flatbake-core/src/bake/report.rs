@@ -120,10 +120,7 @@ impl Report {
             level: level.name.clone(),
             size: [level.width, level.height],
             quality: settings.quality.name().into(),
-            kernel: match settings.kernel {
-                crate::gather::Kernel::Flatland => "flatland".into(),
-                crate::gather::Kernel::Paper => "paper".into(),
-            },
+            kernel: settings.kernel.name().into(),
             gather: settings.gather.name().into(),
             falloff: settings.falloff,
             bounces: settings.bounces,

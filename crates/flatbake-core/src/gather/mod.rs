@@ -93,6 +93,16 @@ pub enum Kernel {
     Paper,
 }
 
+impl Kernel {
+    /// The kernel's name, as on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Kernel::Flatland => "flatland",
+            Kernel::Paper => "paper",
+        }
+    }
+}
+
 /// Shared output slice written at disjoint indices from parallel tasks.
 pub(crate) struct Disjoint<'a, T> {
     ptr: *mut T,
