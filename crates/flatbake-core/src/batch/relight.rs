@@ -9,6 +9,7 @@ use crate::bake::Lightmap;
 use crate::bake::report::{Energy, Report, Skip, Timings};
 use crate::error::{Error, Result};
 use crate::output::cache::{Cache, CacheError};
+use crate::output::names::OutputKind;
 use crate::output::{self, Depth, OutputOptions};
 
 /// Why an `--emission` argument was refused.
@@ -114,17 +115,29 @@ pub fn relight(cache_path: &Path, opts: &RelightOptions) -> Result<Report> {
         hdr: opts.hdr || opts.layers,
         rgbm: cache.rgbm,
     };
+    // Everything is encoded before anything is written, so that the report
+    // on disk lists every file of the relight, layers included.
+    let write = Instant::now();
     output::ensure_output_dir(&opts.out_dir)?;
-    let mut written = output::write_level_outputs(&opts.out_dir, &level, &map, &report, &out_opts)?;
-    if opts.layers {
-        let layers = output::layers::encode_layers(&level, &cache.responses, &emission, &out_opts)?;
-        written.extend(output::write_files(&opts.out_dir, &level.name, &layers)?);
-    }
-    report.outputs = written
+    let images = output::encode_images(&level, &map, &out_opts)?;
+    let layers = if opts.layers {
+        output::layers::encode_layers(&level, &cache.responses, &emission, &out_opts)?
+    } else {
+        Vec::new()
+    };
+    report.outputs = images
         .iter()
-        .filter_map(|p| p.file_name())
-        .map(|n| n.to_string_lossy().into_owned())
+        .map(|f| &f.kind)
+        .chain([&OutputKind::Report])
+        .chain(layers.iter().map(|f| &f.kind))
+        .map(|k| k.file_name(&level.name))
         .collect();
+    output::write_files(&opts.out_dir, &level.name, &images)?;
+    output::write_files(&opts.out_dir, &level.name, &layers)?;
+    report.timings.write = write.elapsed().as_secs_f64();
+    report.timings.total += report.timings.write;
+    let json = output::encode_report(&opts.out_dir, &level.name, &report)?;
+    output::write_files(&opts.out_dir, &level.name, &[json])?;
     Ok(report)
 }
 
