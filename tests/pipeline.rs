@@ -4,8 +4,11 @@
 //! are skipped (and `--force` bakes), and watch mode bakes again after a
 //! save and survives a broken level.
 
+mod common;
+use common::*;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 use std::time::Duration;
 
 use flatbake_core::bake::{self, Settings};
@@ -14,8 +17,6 @@ use flatbake_core::level::palette::Palette;
 use flatbake_core::output::layers;
 use flatbake_core::output::read_lightmap_exr;
 use flatbake_core::quality::Quality;
-
-const BIN: &str = env!("CARGO_BIN_EXE_flatbake");
 
 /// Colours of the test level.
 const WALL: [u8; 3] = [0x80, 0x80, 0x80];
@@ -101,18 +102,6 @@ fn resolved(palette: &str) -> Level {
     )
 }
 
-fn run(args: &[&str]) -> Output {
-    Command::new(BIN).args(args).output().expect("run flatbake")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
-}
-
 /// Largest absolute difference, and the largest value of `a`.
 fn max_diff(a: &[[f32; 3]], b: &[[f32; 3]]) -> (f64, f64) {
     assert_eq!(a.len(), b.len());
@@ -183,7 +172,7 @@ fn bake_layers_writes_files_that_add_up() {
     let dir = tempfile::tempdir().expect("tempdir");
     let png = write_level(dir.path(), "room", &default_palette());
     let out = dir.path().join("out");
-    let o = run(&["bake", s(&png), "-o", s(&out), "--layers", "--quiet"]);
+    let o = flatbake(&["bake", s(&png), "-o", s(&out), "--layers", "--quiet"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let manifest: layers::Manifest = serde_json::from_slice(
         &std::fs::read(out.join("room.layers.json")).expect("manifest written"),
@@ -281,13 +270,13 @@ fn relight_command_equals_bake_command() {
     let dir = tempfile::tempdir().expect("tempdir");
     let png = write_level(dir.path(), "room", &default_palette());
     let out = dir.path().join("out");
-    let o = run(&["bake", s(&png), "-o", s(&out), "--cache", "--quiet"]);
+    let o = flatbake(&["bake", s(&png), "-o", s(&out), "--cache", "--quiet"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let cache = out.join("room.flatbake");
     assert!(cache.is_file());
 
     let relit = dir.path().join("relit");
-    let o = run(&[
+    let o = flatbake(&[
         "relight",
         s(&cache),
         "--emission",
@@ -295,6 +284,7 @@ fn relight_command_equals_bake_command() {
         "--emission",
         "#00FFFF=2",
         "--hdr",
+        "--layers",
         "--level",
         s(&png),
         "-o",
@@ -307,6 +297,20 @@ fn relight_command_equals_bake_command() {
             .expect("report parses");
     assert_eq!(report.solver, "relight");
     assert_eq!(report.timings.form_factors, 0.0);
+    // The report on disk lists exactly the files the relight wrote, layers
+    // included.
+    let mut listed = report.outputs.clone();
+    listed.sort();
+    let mut on_disk: Vec<String> = std::fs::read_dir(&relit)
+        .expect("relit folder")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    on_disk.sort();
+    assert_eq!(listed, on_disk);
+    assert!(
+        listed.iter().any(|n| n.starts_with("room.layer-")),
+        "{listed:?}"
+    );
 
     let fresh_dir = tempfile::tempdir().expect("tempdir");
     let png2 = write_level(
@@ -315,7 +319,7 @@ fn relight_command_equals_bake_command() {
         &palette_text(LAMP_E, [1.0, 5.0, 9.0], [2.0; 3], None),
     );
     let fresh = fresh_dir.path().join("out");
-    let o = run(&["bake", s(&png2), "-o", s(&fresh), "--hdr", "--quiet"]);
+    let o = flatbake(&["bake", s(&png2), "-o", s(&fresh), "--hdr", "--quiet"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let (_, _, a) = read_lightmap_exr(&fresh.join("room.lightmap.exr")).expect("fresh exr");
     let (_, _, b) = read_lightmap_exr(&relit.join("room.lightmap.exr")).expect("relit exr");
@@ -328,14 +332,14 @@ fn relight_refuses_other_versions_levels_and_damaged_files() {
     let dir = tempfile::tempdir().expect("tempdir");
     let png = write_level(dir.path(), "room", &default_palette());
     let out = dir.path().join("out");
-    let o = run(&["bake", s(&png), "-o", s(&out), "--cache", "--quiet"]);
+    let o = flatbake(&["bake", s(&png), "-o", s(&out), "--cache", "--quiet"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let cache = out.join("room.flatbake");
     let bytes = std::fs::read(&cache).expect("cache");
     let relight = |file: &Path, extra: &[&str]| {
         let mut args = vec!["relight", s(file), "-o", s(&out)];
         args.extend_from_slice(extra);
-        run(&args)
+        flatbake(&args)
     };
 
     // Not a cache at all.
@@ -407,7 +411,7 @@ fn unchanged_batch_skips_and_force_or_a_palette_change_bakes() {
     let bake = |extra: &[&str]| {
         let mut args = vec!["bake", s(&png), "-o", s(&out)];
         args.extend_from_slice(extra);
-        let o = run(&args);
+        let o = flatbake(&args);
         assert!(o.status.success(), "{}", stderr(&o));
         stderr(&o)
     };
