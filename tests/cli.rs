@@ -2,20 +2,10 @@
 //! output folder, the report's fields (SPEC section 5), the palette legend,
 //! the batch going on past a bad level, and the documented exit codes.
 
+mod common;
+use common::*;
+
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn flatbake(args: &[&str], cwd: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_flatbake"))
-        .args(args)
-        .current_dir(cwd)
-        .output()
-        .expect("flatbake runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 /// Writes a small closed room with a light strip and its palette.
 fn write_room(dir: &Path, name: &str) {
@@ -45,7 +35,7 @@ fn baking_a_folder_writes_every_output_and_a_complete_report() {
     std::fs::create_dir(&levels).expect("mkdir");
     write_room(&levels, "a");
     write_room(&levels, "b");
-    let o = flatbake(&["bake", "levels", "-o", "out", "--hdr"], dir.path());
+    let o = flatbake_in(&["bake", "levels", "-o", "out", "--hdr"], dir.path());
     assert!(o.status.success(), "{}", stderr(&o));
     for name in ["a", "b"] {
         for suffix in ["lightmap.png", "lit.png", "lightmap.exr", "report.json"] {
@@ -104,7 +94,7 @@ fn one_bad_level_does_not_stop_the_batch_and_fails_the_exit_status() {
     let dir = tempfile::tempdir().expect("temp dir");
     write_room(dir.path(), "good");
     std::fs::write(dir.path().join("broken.png"), b"not a png at all").expect("write");
-    let o = flatbake(&["bake", ".", "-o", "out", "--quiet"], dir.path());
+    let o = flatbake_in(&["bake", ".", "-o", "out", "--quiet"], dir.path());
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(dir.path().join("out/good.lightmap.png").exists());
     assert!(!dir.path().join("out/broken.lightmap.png").exists());
@@ -120,7 +110,7 @@ fn one_bad_level_does_not_stop_the_batch_and_fails_the_exit_status() {
 fn quiet_success_prints_nothing_and_exits_zero() {
     let dir = tempfile::tempdir().expect("temp dir");
     write_room(dir.path(), "room");
-    let o = flatbake(&["bake", "room.png", "-o", "out", "--quiet"], dir.path());
+    let o = flatbake_in(&["bake", "room.png", "-o", "out", "--quiet"], dir.path());
     assert_eq!(o.status.code(), Some(0));
     assert!(o.stderr.is_empty() && o.stdout.is_empty(), "{}", stderr(&o));
 }
@@ -136,7 +126,7 @@ fn bad_flags_exit_with_status_two() {
         &["bake", "room.png", "--jobs", "0"],
         &["bake", "room.png", "--depth", "12"],
     ] {
-        let o = flatbake(args, dir.path());
+        let o = flatbake_in(args, dir.path());
         assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
         assert!(!stderr(&o).is_empty(), "{args:?} says why");
     }
@@ -145,7 +135,7 @@ fn bad_flags_exit_with_status_two() {
 #[test]
 fn palette_legend_is_drawn_by_flatbake() {
     let dir = tempfile::tempdir().expect("temp dir");
-    let o = flatbake(&["palette", "--legend", "legend.png"], dir.path());
+    let o = flatbake_in(&["palette", "--legend", "legend.png"], dir.path());
     assert!(o.status.success(), "{}", stderr(&o));
     let img = image::open(dir.path().join("legend.png"))
         .expect("legend is an image")
@@ -157,7 +147,7 @@ fn palette_legend_is_drawn_by_flatbake() {
     colours.dedup();
     assert!(colours.len() > 8, "legend has {} colours", colours.len());
     // Without --legend it prints the palette as text.
-    let o = flatbake(&["palette"], dir.path());
+    let o = flatbake_in(&["palette"], dir.path());
     assert!(o.status.success());
     let text = String::from_utf8_lossy(&o.stdout);
     assert!(
@@ -172,7 +162,7 @@ fn output_does_not_depend_on_the_thread_count() {
     write_room(dir.path(), "room");
     for jobs in ["1", "2"] {
         let out = format!("out{jobs}");
-        let o = flatbake(
+        let o = flatbake_in(
             &[
                 "bake", "room.png", "-o", &out, "--hdr", "--quiet", "--jobs", jobs,
             ],
@@ -191,7 +181,7 @@ fn output_does_not_depend_on_the_thread_count() {
 fn sweep_writes_the_csv_the_table_and_the_plot() {
     let dir = tempfile::tempdir().expect("temp dir");
     write_room(dir.path(), "room");
-    let o = flatbake(&["sweep", "room.png", "-o", "sweep"], dir.path());
+    let o = flatbake_in(&["sweep", "room.png", "-o", "sweep"], dir.path());
     assert!(o.status.success(), "{}", stderr(&o));
     let csv = std::fs::read_to_string(dir.path().join("sweep/accuracy.csv")).expect("csv");
     let mut lines = csv.lines();
@@ -234,7 +224,7 @@ fn palette_bounces_and_the_flag_switch_off_the_bounce_and_say_so() {
         serde_json::from_str(&text).expect("JSON")
     };
     // The flag: direct light only, no solve, reported and summarised.
-    let o = flatbake(
+    let o = flatbake_in(
         &["bake", "room.png", "-o", "flag", "--bounces", "0"],
         dir.path(),
     );
@@ -258,7 +248,7 @@ fn palette_bounces_and_the_flag_switch_off_the_bounce_and_say_so() {
         format!("[bake]\nbounces = 0\n\n{pal}"),
     )
     .expect("write");
-    let o = flatbake(&["bake", "room.png", "-o", "palette"], dir.path());
+    let o = flatbake_in(&["bake", "room.png", "-o", "palette"], dir.path());
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(report("palette")["solves"], 0);
     let a = std::fs::read(dir.path().join("flag/room.lightmap.png")).expect("read");

@@ -7,43 +7,11 @@
 //! image variant's pixels) are in `tests/palette.rs` and
 //! `tests/level_loading.rs`; these tests check what a user of the binary sees.
 
+mod common;
+use common::*;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-/// The binary's exit statuses (its `--help` states them).
-const EXIT_OK: u8 = 0;
-const EXIT_FAILED: u8 = 1;
-const EXIT_USAGE: u8 = 2;
-
-fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/fixtures/input")
-        .join(name)
-}
-
-fn flatbake(args: &[&dyn AsRef<std::ffi::OsStr>]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_flatbake"))
-        .args(args.iter().map(|a| a.as_ref()))
-        .output()
-        .expect("flatbake runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-#[track_caller]
-fn assert_exit(o: &Output, code: u8) {
-    assert_eq!(o.status.code(), Some(code as i32), "stderr: {}", stderr(o));
-}
-
-#[track_caller]
-fn assert_says(o: &Output, words: &[&str]) {
-    let e = stderr(o);
-    for w in words {
-        assert!(e.contains(w), "stderr lacks {w:?}:\n{e}");
-    }
-}
+use std::process::Command;
 
 /// Copies a fixture into `dir` under `name`.
 fn copy(dir: &Path, fixture_name: &str, name: &str) -> PathBuf {
@@ -121,7 +89,7 @@ fn truncated_empty_and_non_image_files_are_named_with_their_problem() {
             ],
         ),
     ] {
-        let o = flatbake(&[&"bake", &fixture(fix), &"-o", &out]);
+        let o = flatbake_mixed(&[&"bake", &fixture(fix), &"-o", &out]);
         assert_exit(&o, EXIT_FAILED);
         assert_says(&o, &words);
         assert_says(&o, &["0 levels baked", "1 failed"]);
@@ -129,10 +97,10 @@ fn truncated_empty_and_non_image_files_are_named_with_their_problem() {
     // Binary junk under an image name; a missing file.
     let junk = dir.path().join("junk.png");
     std::fs::write(&junk, [0u8, 1, 2, 3, 0xff, 0xfe, 7, 9, 11, 13]).unwrap();
-    let o = flatbake(&[&"bake", &junk, &"-o", &out]);
+    let o = flatbake_mixed(&[&"bake", &junk, &"-o", &out]);
     assert_exit(&o, EXIT_FAILED);
     assert_says(&o, &["junk.png", "not an image", "00 01 02 03"]);
-    let o = flatbake(&[&"bake", &dir.path().join("nowhere.png"), &"-o", &out]);
+    let o = flatbake_mixed(&[&"bake", &dir.path().join("nowhere.png"), &"-o", &out]);
     assert_exit(&o, EXIT_FAILED);
     assert_says(&o, &["nowhere.png", "file not found"]);
     assert!(!out.exists() || std::fs::read_dir(&out).unwrap().next().is_none());
@@ -145,7 +113,7 @@ fn wrong_extension_loads_by_content() {
     let out = dir.path().join("out");
     let jpg = fixture("png_content_named.jpg");
     let bmp = copy(dir.path(), "rgb8_room.png", "room_named.bmp");
-    let o = flatbake(&[&"bake", &jpg, &bmp, &"-o", &out]);
+    let o = flatbake_mixed(&[&"bake", &jpg, &bmp, &"-o", &out]);
     assert_exit(&o, EXIT_OK);
     for name in ["png_content_named", "room_named"] {
         assert!(out.join(format!("{name}.lightmap.png")).is_file(), "{name}");
@@ -167,7 +135,7 @@ fn enormous_declared_size_is_refused_with_the_limit_and_the_flag() {
             "16000 x 16000",
         ),
     ] {
-        let o = flatbake(&[&"bake", &fixture(fix), &"-o", &out]);
+        let o = flatbake_mixed(&[&"bake", &fixture(fix), &"-o", &out]);
         assert_exit(&o, EXIT_FAILED);
         assert_says(
             &o,
@@ -188,7 +156,7 @@ fn max_pixels_flag_raises_and_lowers_the_limit() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out");
     let lvl = paint(dir.path(), "room", ROOM, Some(PALETTE));
-    let o = flatbake(&[&"bake", &lvl, &"-o", &out, &"--max-pixels", &"49"]);
+    let o = flatbake_mixed(&[&"bake", &lvl, &"-o", &out, &"--max-pixels", &"49"]);
     assert_exit(&o, EXIT_FAILED);
     assert_says(
         &o,
@@ -198,9 +166,9 @@ fn max_pixels_flag_raises_and_lowers_the_limit() {
             "--max-pixels 50",
         ],
     );
-    let o = flatbake(&[&"bake", &lvl, &"-o", &out, &"--max-pixels", &"50"]);
+    let o = flatbake_mixed(&[&"bake", &lvl, &"-o", &out, &"--max-pixels", &"50"]);
     assert_exit(&o, EXIT_OK);
-    let o = flatbake(&[&"bake", &lvl, &"-o", &out, &"--max-pixels", &"lots"]);
+    let o = flatbake_mixed(&[&"bake", &lvl, &"-o", &out, &"--max-pixels", &"lots"]);
     assert_exit(&o, EXIT_USAGE);
 }
 
@@ -334,13 +302,13 @@ fn palette_errors_name_file_and_line() {
     for (name, text, line, words) in cases {
         let pal = dir.path().join(format!("{name}.toml"));
         std::fs::write(&pal, text).unwrap();
-        let o = flatbake(&[&"bake", &lvl, &"-o", &out, &"--palette", &pal]);
+        let o = flatbake_mixed(&[&"bake", &lvl, &"-o", &out, &"--palette", &pal]);
         assert_exit(&o, EXIT_FAILED);
         let at = format!("{}:{line}: ", pal.display());
         assert_says(&o, &[&at]);
         assert_says(&o, words);
         // `flatbake palette --palette` shows the same message.
-        let o = flatbake(&[&"palette", &"--palette", &pal]);
+        let o = flatbake_mixed(&[&"palette", &"--palette", &pal]);
         assert_exit(&o, EXIT_FAILED);
         assert_says(&o, &[&at]);
         assert_says(&o, words);
@@ -352,7 +320,7 @@ fn palette_errors_name_file_and_line() {
         ROOM,
         Some("[[wall]]\ncolor = \"#808080\"\nreflectance = 2\n"),
     );
-    let o = flatbake(&[&"bake", &beside, &"-o", &out]);
+    let o = flatbake_mixed(&[&"bake", &beside, &"-o", &out]);
     assert_exit(&o, EXIT_FAILED);
     assert_says(
         &o,
@@ -368,7 +336,7 @@ fn short_hex_and_rgb_array_spellings_bake() {
     let out = dir.path().join("out");
     let pal = "[[wall]]\ncolor = [128, 128, 128]\nreflectance = 0.5\n\n[[emitter]]\ncolor = \"#FFF\"\nemission = 1.0\n";
     let lvl = paint(dir.path(), "spelled", ROOM, Some(pal));
-    let o = flatbake(&[&"bake", &lvl, &"-o", &out]);
+    let o = flatbake_mixed(&[&"bake", &lvl, &"-o", &out]);
     assert_exit(&o, EXIT_OK);
     let r = report(&out, "spelled");
     assert!(r["energy"]["emitted"].as_f64().unwrap() > 0.0, "{r}");
@@ -389,7 +357,7 @@ fn anti_aliased_pixels_are_counted_and_located() {
         "##########",
     ];
     let lvl = paint(dir.path(), "soft", &rows, Some(PALETTE));
-    let o = flatbake(&[&"bake", &lvl, &"-o", &out]);
+    let o = flatbake_mixed(&[&"bake", &lvl, &"-o", &out]);
     assert_exit(&o, EXIT_OK);
     let r = report(&out, "soft");
     let warnings: Vec<&str> = r["warnings"]
@@ -413,13 +381,13 @@ fn anti_aliased_pixels_are_counted_and_located() {
     }
     assert_says(&o, &["warning", "soft.png", "2 pixels", "anti-aliasing"]);
     // --quiet prints only errors.
-    let o = flatbake(&[&"bake", &lvl, &"-o", &out, &"--quiet"]);
+    let o = flatbake_mixed(&[&"bake", &lvl, &"-o", &out, &"--quiet"]);
     assert_exit(&o, EXIT_OK);
     assert!(stderr(&o).is_empty(), "{}", stderr(&o));
     // With a tolerance they snap to the wall: two more solid pixels' edges.
     let snapped = format!("[bake]\ntolerance = 6\n\n{PALETTE}");
     std::fs::write(dir.path().join("soft.palette.toml"), snapped).unwrap();
-    let o = flatbake(&[&"bake", &lvl, &"-o", &out]);
+    let o = flatbake_mixed(&[&"bake", &lvl, &"-o", &out]);
     assert_exit(&o, EXIT_OK);
     let r2 = report(&out, "soft");
     assert!(
@@ -438,11 +406,11 @@ fn output_folder_that_is_a_file_or_under_a_file_is_named() {
     let lvl = paint(dir.path(), "room", ROOM, Some(PALETTE));
     let file = dir.path().join("not_a_folder");
     std::fs::write(&file, "x").unwrap();
-    let o = flatbake(&[&"bake", &lvl, &"-o", &file]);
+    let o = flatbake_mixed(&[&"bake", &lvl, &"-o", &file]);
     assert_exit(&o, EXIT_FAILED);
     assert_says(&o, &["not_a_folder is a file, not a folder"]);
     let under = file.join("out");
-    let o = flatbake(&[&"bake", &lvl, &"-o", &under]);
+    let o = flatbake_mixed(&[&"bake", &lvl, &"-o", &under]);
     assert_exit(&o, EXIT_FAILED);
     assert_says(
         &o,
@@ -457,7 +425,7 @@ fn missing_output_folder_is_created() {
     let dir = tempfile::tempdir().unwrap();
     let lvl = paint(dir.path(), "room", ROOM, Some(PALETTE));
     let out = dir.path().join("a/b/c");
-    let o = flatbake(&[&"bake", &lvl, &"-o", &out]);
+    let o = flatbake_mixed(&[&"bake", &lvl, &"-o", &out]);
     assert_exit(&o, EXIT_OK);
     assert!(out.join("room.lightmap.png").is_file());
 }
@@ -511,7 +479,7 @@ fn read_only_output_folder_keeps_earlier_outputs() {
         eprintln!("skipped: cannot mount a tmpfs here (needs root)");
         return;
     };
-    let o = flatbake(&[&"bake", &lvl, &"-o", &mnt]);
+    let o = flatbake_mixed(&[&"bake", &lvl, &"-o", &mnt]);
     assert_exit(&o, EXIT_OK);
     let before = snapshot(&mnt);
     let st = Command::new("mount")
@@ -520,7 +488,7 @@ fn read_only_output_folder_keeps_earlier_outputs() {
         .status()
         .unwrap();
     assert!(st.success());
-    let o = flatbake(&[&"bake", &lvl, &"-o", &mnt, &"--exposure", &"3"]);
+    let o = flatbake_mixed(&[&"bake", &lvl, &"-o", &mnt, &"--exposure", &"3"]);
     assert_exit(&o, EXIT_FAILED);
     assert_says(&o, &["room.lightmap.png", "read-only"]);
     assert_eq!(snapshot(&mnt), before);
@@ -539,7 +507,7 @@ fn full_disk_says_so_and_earlier_outputs_survive() {
         eprintln!("skipped: cannot mount a tmpfs here (needs root)");
         return;
     };
-    let o = flatbake(&[&"bake", &lvl, &"-o", &mnt]);
+    let o = flatbake_mixed(&[&"bake", &lvl, &"-o", &mnt]);
     assert_exit(&o, EXIT_OK);
     let before = snapshot(&mnt);
     // Fill the disk.
@@ -550,7 +518,7 @@ fn full_disk_says_so_and_earlier_outputs_survive() {
         while f.write_all(&chunk).is_ok() {}
         let _ = f.sync_all();
     }
-    let o = flatbake(&[&"bake", &lvl, &big, &"-o", &mnt, &"--exposure", &"2"]);
+    let o = flatbake_mixed(&[&"bake", &lvl, &big, &"-o", &mnt, &"--exposure", &"2"]);
     assert_exit(&o, EXIT_FAILED);
     assert_says(&o, &["the disk is full", "0 levels baked", "2 failed"]);
     let mut after = snapshot(&mnt);
@@ -596,7 +564,7 @@ fn batch_bakes_every_good_level_and_names_every_bad_one() {
             "[[wall]]\ncolor = \"#808080\"\nreflectance = 1\n\n[[emitter]]\ncolor = \"#ffffff\"\nemission = 1\nreflectance = 1\n",
         ),
     );
-    let o = flatbake(&[&"bake", &levels, &"-o", &out, &"--jobs", &"2"]);
+    let o = flatbake_mixed(&[&"bake", &levels, &"-o", &out, &"--jobs", &"2"]);
     assert_exit(&o, EXIT_FAILED);
     assert_says(&o, &["3 levels baked", "6 failed"]);
     for good in ["cornell", "good_room", "good_16bit"] {
@@ -627,7 +595,7 @@ fn batch_bakes_every_good_level_and_names_every_bad_one() {
         assert!(!out.join(format!("{stem}.lightmap.png")).exists());
     }
     // Every good level's outputs were written whatever failed around them.
-    let o2 = flatbake(&[&"bake", &levels.join("good_room.png"), &"-o", &out]);
+    let o2 = flatbake_mixed(&[&"bake", &levels.join("good_room.png"), &"-o", &out]);
     assert_exit(&o2, EXIT_OK);
 }
 
@@ -642,7 +610,7 @@ fn bad_flag_values_are_usage_errors() {
         ("--jobs", "0", "--jobs must be at least 1"),
     ] {
         let arg = format!("{flag}={value}");
-        let o = flatbake(&[&"bake", &lvl, &"-o", &dir.path().join("out"), &arg]);
+        let o = flatbake_mixed(&[&"bake", &lvl, &"-o", &dir.path().join("out"), &arg]);
         assert_exit(&o, EXIT_USAGE);
         assert_says(&o, &[words]);
     }
@@ -660,7 +628,7 @@ fn same_level_name_twice_in_a_batch_is_refused_not_overwritten() {
     let first = paint(&a, "room", ROOM, Some(PALETTE));
     let second = paint(&b, "room", &["####", "#L.#", "####"], Some(PALETTE));
     let out = dir.path().join("out");
-    let o = flatbake(&[&"bake", &first, &second, &first, &"-o", &out]);
+    let o = flatbake_mixed(&[&"bake", &first, &second, &first, &"-o", &out]);
     assert_exit(&o, EXIT_FAILED);
     assert_says(&o, &["2 levels baked", "1 failed"]);
     let e = stderr(&o);
@@ -684,7 +652,7 @@ fn a_folder_without_levels_is_named() {
     let empty = dir.path().join("empty");
     std::fs::create_dir(&empty).unwrap();
     std::fs::write(empty.join("notes.txt"), "no levels here").unwrap();
-    let o = flatbake(&[&"bake", &empty, &"-o", &dir.path().join("out")]);
+    let o = flatbake_mixed(&[&"bake", &empty, &"-o", &dir.path().join("out")]);
     assert_exit(&o, EXIT_FAILED);
     assert_says(&o, &["empty", "holds no level images"]);
 }

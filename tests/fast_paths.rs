@@ -37,27 +37,18 @@ fn lighting<'a>(
     }
 }
 
+/// Walls at a random density, a few lights, all floor otherwise.
 fn level_strategy() -> impl Strategy<Value = Level> {
-    (4usize..28, 4usize..28, 0u8..4, any::<u64>()).prop_map(|(w, h, density, seed)| {
-        let mut s = seed | 1;
-        let rows: Vec<String> = (0..h)
-            .map(|_| {
-                (0..w)
-                    .map(|_| {
-                        s ^= s << 13;
-                        s ^= s >> 7;
-                        s ^= s << 17;
-                        match s % 32 {
-                            0 => '*',
-                            v if v < 2 + density as u64 * 2 => '#',
-                            _ => '.',
-                        }
-                    })
-                    .collect()
-            })
-            .collect();
-        ascii(&refs(&rows), &[('#', wall(0.5)), ('*', light(4.0, 0.3))])
-    })
+    grid_level(
+        4..28,
+        4..28,
+        |v, density| match v % 32 {
+            0 => '*',
+            v if v < 2 + density * 2 => '#',
+            _ => '.',
+        },
+        || vec![('#', wall(0.5)), ('*', light(4.0, 0.3))],
+    )
 }
 
 /// `0..n` in an order shuffled by `seed` (Fisher-Yates, xorshift).

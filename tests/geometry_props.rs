@@ -11,23 +11,17 @@ use proptest::prelude::*;
 
 /// A random level: each pixel floor, void, or one of two wall materials.
 fn level_strategy() -> impl Strategy<Value = Level> {
-    (1usize..14, 1usize..14).prop_flat_map(|(w, h)| {
-        proptest::collection::vec(0u8..10, w * h).prop_map(move |v| {
-            let rows: Vec<String> = (0..h)
-                .map(|y| {
-                    (0..w)
-                        .map(|x| match v[y * w + x] {
-                            0..=3 => '.',
-                            4 => ' ',
-                            5..=7 => '#',
-                            _ => 'L',
-                        })
-                        .collect()
-                })
-                .collect();
-            ascii(&refs(&rows), &[('#', wall(0.5)), ('L', light(1.0, 0.2))])
-        })
-    })
+    grid_level(
+        1..14,
+        1..14,
+        |v, _| match v % 10 {
+            0..=3 => '.',
+            4 => ' ',
+            5..=7 => '#',
+            _ => 'L',
+        },
+        || vec![('#', wall(0.5)), ('L', light(1.0, 0.2))],
+    )
 }
 
 fn solid(l: &Level, x: i32, y: i32) -> bool {

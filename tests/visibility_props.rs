@@ -9,25 +9,14 @@ use flatbake_core::level::Level;
 use flatbake_core::visibility::{Blocks, Rect, Span, Sweeper, View, Viewpoint, diamond};
 use proptest::prelude::*;
 
+/// Walls at a random density on floor.
 fn level_strategy() -> impl Strategy<Value = Level> {
-    (2usize..24, 2usize..24, 0u8..4).prop_flat_map(|(w, h, density)| {
-        proptest::collection::vec(0u8..16, w * h).prop_map(move |v| {
-            let rows: Vec<String> = (0..h)
-                .map(|y| {
-                    (0..w)
-                        .map(|x| {
-                            if v[y * w + x] < 2 + density * 2 {
-                                '#'
-                            } else {
-                                '.'
-                            }
-                        })
-                        .collect()
-                })
-                .collect();
-            ascii(&refs(&rows), &[('#', wall(0.5))])
-        })
-    })
+    grid_level(
+        2..24,
+        2..24,
+        |v, density| if v % 16 < 2 + density * 2 { '#' } else { '.' },
+        || vec![('#', wall(0.5))],
+    )
 }
 
 /// First edge hit by the ray from `p` in direction `d` (brute force).

@@ -1,5 +1,4 @@
-//! Helpers shared by the integration tests: levels from ASCII art.
-#![allow(dead_code)]
+//! Levels from ASCII art.
 
 use flatbake_core::level::material::{Material, MaterialKind};
 use flatbake_core::level::{Cell, Level};
@@ -86,6 +85,7 @@ pub fn room(w: usize, h: usize) -> Vec<String> {
         .collect()
 }
 
+/// The rows as string slices, for [`ascii`].
 pub fn refs(v: &[String]) -> Vec<&str> {
     v.iter().map(String::as_str).collect()
 }
