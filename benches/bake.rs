@@ -1,4 +1,4 @@
-//! Criterion benchmarks of the bake stages (issue 5). Sample counts are the
+//! Criterion benchmarks of the bake stages (the levels and targets of docs/performance.md). Sample counts are the
 //! minimum so `cargo bench` finishes in a few minutes on two cores; the
 //! 1024 and 2048 px sizes run only with `FLATBAKE_BENCH_BIG=1` (or use
 //! `examples/perf_table.rs`, which prints the README tables for them).

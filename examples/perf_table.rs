@@ -1,4 +1,4 @@
-//! Prints the performance tables of `docs/performance.md` (issue 5):
+//! Prints the performance tables of `docs/performance.md`:
 //!
 //! ```text
 //! cargo build --release --bins --examples && target/release/examples/perf_table [--quick] [--max SIZE]

@@ -1,4 +1,4 @@
-//! Writes the benchmark levels of issue 5 as PNG + palette, for baking or
+//! Writes the benchmark levels of docs/performance.md as PNG + palette, for baking or
 //! profiling them by hand:
 //!
 //! ```text

@@ -1,5 +1,5 @@
 //! The command line as a user meets it: baking a folder, what lands in the
-//! output folder, the report's fields (SPEC section 5), the palette legend,
+//! output folder, the report's fields (docs/transport.md#report), the palette legend,
 //! the batch going on past a bad level, and the documented exit codes.
 
 mod common;

@@ -1,4 +1,4 @@
-//! Bad input through the command line (issue 4): every broken file, palette
+//! Bad input through the command line (docs/robustness.md, "Bad input"): every broken file, palette
 //! or output folder gets a clear message naming it, good levels in the same
 //! batch still bake, earlier good outputs survive, and the exit status says
 //! something failed (0 baked, 1 a level failed, 2 a bad command line).

@@ -1,4 +1,4 @@
-//! The speed-ups of issue 5 change no answer: the batched reflected-light
+//! The speed-ups recorded in docs/performance.md change no answer: the batched reflected-light
 //! kernel against the plain per-patch sum with the library's `atan`, and the
 //! sweep's reuse of the previous query's event order against fresh sweeps.
 //! The one that trades exactness for speed, gathering distant reflected

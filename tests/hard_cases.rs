@@ -1,4 +1,4 @@
-//! Hard cases (issue 4): reflectance near and at 1, geometry extremes,
+//! Hard cases (the tables of docs/robustness.md): reflectance near and at 1, geometry extremes,
 //! extreme values, the paper's kernel, determinism, and random levels.
 //!
 //! Every bake here goes through [`checked`], which asserts what must hold for

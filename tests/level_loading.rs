@@ -1,4 +1,4 @@
-//! Level loading (SPEC sections 1 and 2): every image flavour a paint program
+//! Level loading (docs/transport.md, units and pixels, and the palette): every image flavour a paint program
 //! saves loads to the same level, bad files fail with words that name the
 //! file and the problem, oversized images are refused before decoding, and
 //! anti-aliased wall edges are reported or snapped.
@@ -795,7 +795,7 @@ mod properties {
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(256))]
 
-        /// Each cell matches a direct reading of SPEC 1 and 2: alpha 0 is
+        /// Each cell matches a direct reading of docs/transport.md (units and pixels, palette): alpha 0 is
         /// void; otherwise the exact colour, or within `tolerance` the
         /// nearest colour, decides; all else is floor with its own colour.
         #[test]

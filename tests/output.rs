@@ -1,4 +1,4 @@
-//! Outputs (SPEC section 5): every file is decoded back and compared with
+//! Outputs (docs/transport.md#tone-mapping-and-outputs): every file is decoded back and compared with
 //! values computed here independently; atomic writes are checked by making
 //! writes fail and looking at what is left on disk.
 

@@ -1,5 +1,5 @@
 //! Palette parsing, lookup order and the built-in palette
-//! (SPEC section 2). Every malformed palette must fail with the right line
+//! (docs/transport.md#palette-and-materials). Every malformed palette must fail with the right line
 //! and words, because designers fix palettes by reading those messages.
 
 use std::collections::HashSet;

@@ -1,4 +1,4 @@
-//! The game pipeline (issue 7): light layers add up to the full lightmap,
+//! The game pipeline (README, "Using flatbake in a game"): light layers add up to the full lightmap,
 //! relighting a cache equals a fresh bake with the new emission, caches of
 //! another version, level or a damaged file are refused, unchanged batches
 //! are skipped (and `--force` bakes), and watch mode bakes again after a

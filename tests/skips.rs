@@ -1,4 +1,4 @@
-//! Simulating only what a scene calls for (issue 6): every skip is checked
+//! Simulating only what a scene calls for (README, "What flatbake skips"): every skip is checked
 //! against the full computation (`Settings::exhaustive`), identical where the
 //! skip is exact and within its documented bound where it is bounded, and
 //! the report says what was skipped.

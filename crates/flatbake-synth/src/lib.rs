@@ -2,7 +2,7 @@
 //!
 //! Every generator paints a level the way a designer would in an image
 //! editor — walls, emitters and floor as plain pixels — and writes the palette
-//! TOML (SPEC section 2) that gives those colours their meaning. Output is a
+//! TOML (docs/transport.md#palette-and-materials) that gives those colours their meaning. Output is a
 //! [`Painted`] level: RGBA pixels plus palette text, so the same levels feed
 //! the sample folder (`examples/make_levels.rs`), the benchmarks and the
 //! property tests through exactly the loading path a user's files take.
@@ -268,7 +268,7 @@ impl PaletteBuilder {
         color
     }
 
-    /// An emitter; `reflectance` `None` leaves the SPEC default (0).
+    /// An emitter; `reflectance` `None` leaves the palette default (0).
     pub fn emitter(
         &mut self,
         note: &str,
@@ -327,7 +327,7 @@ impl PaletteBuilder {
         })
     }
 
-    /// The palette as TOML text (SPEC section 2).
+    /// The palette as TOML text (docs/transport.md#palette-and-materials).
     pub fn to_toml(&self) -> String {
         let hex = |c: [u8; 4]| format!("\"#{:02x}{:02x}{:02x}\"", c[0], c[1], c[2]);
         let mut s = String::new();
@@ -551,7 +551,7 @@ impl Canvas {
     }
 
     /// A Bresenham line, 8-connected: diagonal steps touch only at corners,
-    /// which SPEC section 3 treats as closed, so the line is still a wall.
+    /// which are closed (docs/transport.md#corners), so the line is still a wall.
     pub fn line(&mut self, a: (i32, i32), b: (i32, i32), c: [u8; 4]) {
         for (x, y) in line_points(a, b) {
             self.set(x, y, c);
@@ -1903,7 +1903,7 @@ fn random_value(rng: &mut Rng, f: &mut dyn FnMut(&mut Rng) -> f64) -> Value {
 /// channel, sometimes exactly 0 or 1); 0-3 emitters with random, often
 /// coloured emission (sometimes with reflectance); sometimes an explicit
 /// `[[floor]]` albedo; falloff or none. Sometimes the level is a walled room.
-/// The palette is always valid per SPEC 2 and floor colours are never near a
+/// The palette is always valid (docs/transport.md#palette-and-materials) and floor colours are never near a
 /// wall or emitter colour.
 pub fn random_small(seed: u64) -> Painted {
     let mut rng = Rng::new(seed ^ 0x7a11_5ca1_ab1e);

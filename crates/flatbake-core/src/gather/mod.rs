@@ -1,4 +1,4 @@
-//! Gathering light onto floor pixels (SPEC section 4):
+//! Gathering light onto floor pixels (docs/transport.md#floor-gather):
 //! `I(p) = 1/(2 pi) * integral over directions of B(first hit) * w(distance)`.
 //!
 //! The fast gather finds exactly which stretches of which edges a pixel
@@ -87,7 +87,7 @@ impl Radiosity {
 /// Which kernel turns radiosity into pixel light.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Kernel {
-    /// Exact flatland transport (SPEC 4).
+    /// Exact flatland transport (docs/transport.md#radiosity-equation).
     Flatland,
     /// The paper's equation 5: `A cos(theta) / (A + r^2) * Vis` per patch.
     Paper,

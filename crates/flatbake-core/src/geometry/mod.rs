@@ -1,5 +1,5 @@
 //! Geometry: the exact boundary of the solid pixels, traced into closed loops
-//! of right-facing edges (SPEC section 3).
+//! of right-facing edges (docs/transport.md#edges).
 //!
 //! Every exposed side of a solid pixel becomes a unit edge whose normal points
 //! into the free neighbour (or out of the image). Unit edges are linked into

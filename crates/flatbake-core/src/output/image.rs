@@ -169,7 +169,7 @@ pub fn lit_image(
 }
 
 /// The linear HDR lightmap: I(p) on floor pixels, unscaled by exposure and
-/// unclamped above; 0 on solid and void pixels (SPEC section 5), and 0 where
+/// unclamped above; 0 on solid and void pixels (docs/transport.md#tone-mapping-and-outputs), and 0 where
 /// the solve produced a negative or non-finite value (light is never
 /// negative). Row-major.
 pub fn hdr_pixels(level: &Level, map: &Lightmap) -> Result<Vec<[f32; 3]>, OutputError> {

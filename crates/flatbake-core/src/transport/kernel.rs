@@ -6,7 +6,7 @@
 //! `r = sqrt(d^2 + t^2)`, and `cos(theta_y) dy / r = d psi`. The falloff
 //! weight is `w = A / (A + r^2) = A cos^2 psi / (A cos^2 psi + d^2)`.
 //!
-//! * Floor gather (SPEC 4): `1/(2 pi) * integral of w d psi`, with
+//! * Floor gather (docs/transport.md#floor-gather): `1/(2 pi) * integral of w d psi`, with
 //!   `integral w d psi = psi - (d / c) atan(t / c)`, `c = sqrt(A + d^2)`.
 //! * Point-to-edge form factor: `1/2 * integral of cos(theta_x) w d psi`, where
 //!   `cos(theta_x) = alpha cos psi + beta sin psi` for the receiving point's

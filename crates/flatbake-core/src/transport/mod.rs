@@ -1,4 +1,4 @@
-//! Patches and the edge-to-edge form factors F (SPEC section 4).
+//! Patches and the edge-to-edge form factors F (docs/transport.md#form-factors).
 //!
 //! Each edge is cut into equal patches no longer than the patch length. Row
 //! `i` of F is the mean, over Gauss-Legendre points `x` on patch `i`, of the

@@ -1,4 +1,4 @@
-//! Solving `(I - diag(rho) F) B = E` for one channel (SPEC section 4).
+//! Solving `(I - diag(rho) F) B = E` for one channel (docs/transport.md#radiosity-solve).
 //!
 //! Patches that do not reflect (`rho = 0`) are known outright (`B = E`).
 //! For the rest, multiplying row `i` by `D_i / rho_i` gives the symmetric
