@@ -22,6 +22,7 @@ pub enum MaterialKind {
 pub struct Material {
     /// The exact sRGB colour that paints this material.
     pub color: [u8; 3],
+    /// Wall or emitter.
     pub kind: MaterialKind,
     /// Linear reflectance per channel, each in `0..=1`.
     pub reflectance: Rgb,
