@@ -3,7 +3,7 @@
 //!
 //! Editors save in several steps (temporary file, rename, metadata), so file
 //! events are debounced with `notify-debouncer-full` and a burst becomes one
-//! bake. Bakes go through the incremental batch ([`crate::stamp`]): a save
+//! bake. Bakes go through the incremental batch (`flatbake_core::batch::stamp`): a save
 //! that leaves the bytes unchanged reports "up to date" instead of baking. A
 //! level that fails (half-painted, broken palette) reports its error and the
 //! watcher keeps going. The loop stops when `stop` is set, which is how tests

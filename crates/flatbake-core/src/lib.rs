@@ -10,7 +10,7 @@
 //!
 //! A game editor plugin, or a game that bakes procedurally generated levels
 //! at load time, needs no files: build a [`Level`] from pixels and a
-//! [`Palette`], [`bake`] it, and read the [`Lightmap`].
+//! [`Palette`], [`bake`](fn@bake) it, and read the [`Lightmap`].
 //!
 //! ```
 //! use flatbake_core::{Level, Palette, Quality, Settings, bake};

@@ -14,7 +14,7 @@ use super::*;
 /// A node above covers up to `2^level` consecutive patches and holds the
 /// least-squares parabola through their piecewise-linear light (a parabola
 /// costs the gather nothing more than a line: its closed form reuses the
-/// same `atan`s, [`GatherPoints::antiderivatives`]), and `dev`, the largest
+/// same `atan`s, [`crate::transport::kernel::GatherPoints::antiderivatives`]), and `dev`, the largest
 /// distance between that parabola and the light it stands for (over the
 /// components that decide, exactly: on each patch the difference is a
 /// quadratic, largest at an end of the patch or at its vertex).

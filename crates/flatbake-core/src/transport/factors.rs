@@ -231,7 +231,7 @@ impl PointRows {
     }
 }
 
-/// [`Wanted`] squared reaches for `reach`: edges that `lit` says have light
+/// [`Wanted`](crate::visibility::Wanted) squared reaches for `reach`: edges that `lit` says have light
 /// reach out to their radius, the others nowhere.
 pub fn wanted_reach(reach: &Reach, lit: impl Fn(usize) -> bool) -> Vec<f64> {
     reach

@@ -79,7 +79,7 @@ impl<'g> TileTree<'g> {
     /// Longest list a quadtree node keeps refining; above it the subtree walks.
     pub const REFINE_MAX: usize = 3000;
     /// Fewest query points in a leaf for its regions' lists to be culled
-    /// for hidden edges ([`TileTree::cull_hidden`]).
+    /// for hidden edges (`TileTree::cull_hidden`).
     pub const CULL_MIN_POINTS: u64 = 8;
 
     /// Splits leaf `r` (holding `points` query points) into free regions and
