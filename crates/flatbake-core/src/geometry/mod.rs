@@ -262,12 +262,40 @@ impl Unit {
 
 /// Traces the solid pixels of `level` into loops and transport edges.
 pub fn trace(level: &Level) -> Geometry {
+    // 1. Every exposed side of a solid pixel, as a directed unit edge.
+    let units = exposed_sides(level);
+    // 2, 3. Unit edges linked into loops, collinear runs of one material
+    //    merged into edges.
+    let (loops, mut edges) = link_loops(level.width as i32, level.height as i32, &units);
+    // 4. Straight occluder runs.
+    let runs = straight_runs(&loops, &mut edges);
+
+    // 5. Components of free pixels, 4-connected.
+    let (components, component_count) = label_components(level);
+    for e in &mut edges {
+        let (lo, _) = e.extent();
+        let fp = e.free_pixel_at(lo as i32);
+        e.component = components[fp[1] as usize * level.width + fp[0] as usize];
+    }
+
+    Geometry {
+        width: level.width,
+        height: level.height,
+        edges,
+        loops,
+        runs,
+        components,
+        component_count,
+    }
+}
+
+/// Every exposed side of a solid pixel, as a directed unit edge.
+fn exposed_sides(level: &Level) -> Vec<Unit> {
     let (w, h) = (level.width as i32, level.height as i32);
     let solid = |x: i32, y: i32| {
         x >= 0 && y >= 0 && x < w && y < h && level.cell(x as usize, y as usize).is_solid()
     };
 
-    // 1. Every exposed side of a solid pixel, as a directed unit edge.
     let mut units: Vec<Unit> = Vec::new();
     for y in 0..h {
         for x in 0..w {
@@ -296,7 +324,15 @@ pub fn trace(level: &Level) -> Geometry {
         }
     }
 
-    // 2. Link unit edges at their vertices. A vertex has one outgoing unit
+    units
+}
+
+/// Links unit edges at their vertices into closed loops, and merges
+/// collinear runs of one material into edges: the loops, and the transport
+/// edges among them (those facing into the image).
+fn link_loops(width: i32, height: i32, units: &[Unit]) -> (Vec<Loop>, Vec<Edge>) {
+    let (w, h) = (width, height);
+    // Link unit edges at their vertices. A vertex has one outgoing unit
     //    edge, or two at a saddle; there the loop stays on its own pixel.
     let vw = (w + 1) as usize;
     let vid = |p: [i32; 2]| p[1] as usize * vw + p[0] as usize;
@@ -340,67 +376,85 @@ pub fn trace(level: &Level) -> Geometry {
             i = next(i);
         }
         debug_assert_eq!(i, start, "unit edges always close into loops");
-        // 3. Merge collinear runs of one material. Rotate the chain so that it
-        //    starts at a break, so no run wraps around the start.
-        let brk = |k: usize| {
-            let p = &units[chain[(k + chain.len() - 1) % chain.len()]];
-            let q = &units[chain[k]];
-            p.normal != q.normal || p.material != q.material
-        };
-        let s = (0..chain.len()).find(|&k| brk(k)).unwrap_or(0);
-        chain.rotate_left(s);
-        let loop_id = loops.len() as u32;
-        let mut lp = Loop {
-            vertices: Vec::new(),
-            edges: Vec::new(),
-        };
-        let mut k = 0;
-        while k < chain.len() {
-            let first = units[chain[k]];
-            let mut last = first;
-            let mut j = k + 1;
-            while j < chain.len() {
-                let u = units[chain[j]];
-                if u.normal != first.normal || u.material != first.material {
-                    break;
-                }
-                last = u;
-                j += 1;
+        let lp = merge_chain(units, chain, [w, h], loops.len() as u32, &mut edges);
+        loops.push(lp);
+    }
+
+    (loops, edges)
+}
+
+/// One closed chain of unit edges (indices into `units`) as a loop:
+/// collinear runs of one material merged into edges; those facing into the
+/// `size` of the image are appended to `edges` as transport edges.
+fn merge_chain(
+    units: &[Unit],
+    mut chain: Vec<usize>,
+    [w, h]: [i32; 2],
+    loop_id: u32,
+    edges: &mut Vec<Edge>,
+) -> Loop {
+    // Rotate the chain so that it starts at a break, so no run wraps
+    // around the start.
+    let brk = |k: usize| {
+        let p = &units[chain[(k + chain.len() - 1) % chain.len()]];
+        let q = &units[chain[k]];
+        p.normal != q.normal || p.material != q.material
+    };
+    let s = (0..chain.len()).find(|&k| brk(k)).unwrap_or(0);
+    chain.rotate_left(s);
+    let mut lp = Loop {
+        vertices: Vec::new(),
+        edges: Vec::new(),
+    };
+    let mut k = 0;
+    while k < chain.len() {
+        let first = units[chain[k]];
+        let mut last = first;
+        let mut j = k + 1;
+        while j < chain.len() {
+            let u = units[chain[j]];
+            if u.normal != first.normal || u.material != first.material {
+                break;
             }
-            let (a, b) = (first.from, last.to());
-            let n = first.normal.vec();
-            let fp = [first.pixel[0] + n[0], first.pixel[1] + n[1]];
-            let outside = fp[0] < 0 || fp[1] < 0 || fp[0] >= w || fp[1] >= h;
-            let transport = if outside {
-                None
-            } else {
-                edges.push(Edge {
-                    a,
-                    b,
-                    normal: first.normal,
-                    material: first.material,
-                    loop_id,
-                    run: u32::MAX,
-                    component: u32::MAX,
-                });
-                Some(edges.len() as u32 - 1)
-            };
-            lp.vertices.push(a);
-            lp.edges.push(LoopEdge {
+            last = u;
+            j += 1;
+        }
+        let (a, b) = (first.from, last.to());
+        let n = first.normal.vec();
+        let fp = [first.pixel[0] + n[0], first.pixel[1] + n[1]];
+        let outside = fp[0] < 0 || fp[1] < 0 || fp[0] >= w || fp[1] >= h;
+        let transport = if outside {
+            None
+        } else {
+            edges.push(Edge {
                 a,
                 b,
                 normal: first.normal,
                 material: first.material,
-                transport,
+                loop_id,
+                run: u32::MAX,
+                component: u32::MAX,
             });
-            k = j;
-        }
-        loops.push(lp);
+            Some(edges.len() as u32 - 1)
+        };
+        lp.vertices.push(a);
+        lp.edges.push(LoopEdge {
+            a,
+            b,
+            normal: first.normal,
+            material: first.material,
+            transport,
+        });
+        k = j;
     }
+    lp
+}
 
-    // 4. Straight occluder runs: consecutive collinear transport edges of a loop.
+/// Straight occluder runs: consecutive collinear transport edges of a loop.
+/// Sets each member edge's `run`.
+fn straight_runs(loops: &[Loop], edges: &mut [Edge]) -> Vec<Run> {
     let mut runs: Vec<Run> = Vec::new();
-    for lp in &loops {
+    for lp in loops {
         let n = lp.edges.len();
         // Start at an edge whose predecessor is not a collinear transport edge.
         let joins = |k: usize| {
@@ -448,23 +502,7 @@ pub fn trace(level: &Level) -> Geometry {
         }
     }
 
-    // 5. Components of free pixels, 4-connected.
-    let (components, component_count) = label_components(level);
-    for e in &mut edges {
-        let (lo, _) = e.extent();
-        let fp = e.free_pixel_at(lo as i32);
-        e.component = components[fp[1] as usize * level.width + fp[0] as usize];
-    }
-
-    Geometry {
-        width: level.width,
-        height: level.height,
-        edges,
-        loops,
-        runs,
-        components,
-        component_count,
-    }
+    runs
 }
 
 /// 4-connected components of the free (non-solid) pixels.

@@ -4,7 +4,7 @@
 use std::collections::{BTreeMap, HashMap};
 use std::hash::{BuildHasherDefault, Hasher};
 
-use crate::level::material::{MaterialKind, srgb_to_linear};
+use crate::level::material::{Material, MaterialKind, srgb_to_linear};
 use crate::level::palette::{ColorClass, Palette, PaletteOrigin};
 use crate::level::{Cell, Level, NEAR_MISS_DISTANCE};
 
@@ -82,14 +82,100 @@ impl Hasher for ColorHasher {
     }
 }
 
-pub(super) fn classify_pixels(
-    name: &str,
+/// Material slots of the palette's solids in first-use order; remapped to
+/// palette order at the end so indices do not depend on where in the image
+/// a material first appears.
+struct Slots {
+    slot_of: Vec<Option<u16>>,
+    /// The palette solid of each slot.
+    used: Vec<usize>,
+    /// More solids were used than a cell can index.
+    overflowed: bool,
+}
+
+impl Slots {
+    fn new(solids: usize) -> Slots {
+        Slots {
+            slot_of: vec![None; solids],
+            used: Vec::new(),
+            overflowed: false,
+        }
+    }
+
+    /// The slot of palette solid `p`, taken now if it is new; `None` when
+    /// every slot is taken.
+    fn of(&mut self, p: usize) -> Option<u16> {
+        match self.slot_of.get(p).copied().flatten() {
+            Some(s) => Some(s),
+            None if self.used.len() <= u16::MAX as usize && p < self.slot_of.len() => {
+                let s = self.used.len() as u16;
+                self.slot_of[p] = Some(s);
+                self.used.push(p);
+                Some(s)
+            }
+            None => {
+                self.overflowed = true;
+                None
+            }
+        }
+    }
+
+    /// Renumbers the solid `cells` into palette order and returns the
+    /// materials used, in that order.
+    fn into_palette_order(self, cells: &mut [Cell], palette: &Palette) -> Vec<Material> {
+        let used = self.used;
+        let mut order: Vec<usize> = (0..used.len()).collect();
+        order.sort_by_key(|&s| used[s]);
+        let mut new_slot = vec![0u16; used.len()];
+        for (new, &old) in order.iter().enumerate() {
+            new_slot[old] = new as u16;
+        }
+        if order.iter().enumerate().any(|(new, &old)| new != old) {
+            for c in cells.iter_mut() {
+                if let Cell::Solid(s) = c {
+                    *s = new_slot[*s as usize];
+                }
+            }
+        }
+        order
+            .iter()
+            .map(|&s| palette.solids[used[s]].clone())
+            .collect()
+    }
+}
+
+impl NearMisses {
+    /// None yet; the first will be at `(x, y)`, of colour `rgb`.
+    fn at(x: usize, y: usize, rgb: [u8; 3]) -> NearMisses {
+        NearMisses {
+            pixels: 0,
+            colors: 0,
+            example: (x, y, rgb),
+            min: (x, y),
+            max: (x, y),
+            max_diff: 0,
+        }
+    }
+
+    /// Counts one more near-miss pixel at `(x, y)`, `diff` steps from its
+    /// palette colour, of a colour seen for the first time or not.
+    fn record(&mut self, (x, y): (usize, usize), diff: u8, first_time: bool) {
+        self.pixels += 1;
+        self.colors += first_time as u64;
+        self.min = (self.min.0.min(x), self.min.1.min(y));
+        self.max = (self.max.0.max(x), self.max.1.max(y));
+        self.max_diff = self.max_diff.max(diff);
+    }
+}
+
+/// The level's size, or `0 x 0` when it overflows; says so, and says when
+/// the `available` pixels are fewer than the size needs.
+fn checked_size(
     width: usize,
     height: usize,
-    rgba: &[u8],
-    palette: &Palette,
-) -> Level {
-    let mut warnings = Vec::new();
+    available: usize,
+    warnings: &mut Vec<String>,
+) -> (usize, usize) {
     let (width, height) = match width.checked_mul(height) {
         Some(_) => (width, height),
         None => {
@@ -100,21 +186,29 @@ pub(super) fn classify_pixels(
         }
     };
     let n = width * height;
-    let available = rgba.len() / 4;
     if available < n {
         warnings.push(format!(
             "pixel data holds {available} pixels but the level is {width} x {height} = {n}; the rest is void"
         ));
     }
+    (width, height)
+}
+
+/// Classifies `rgba` (row-major, 4 bytes per pixel) with `palette`.
+pub(super) fn classify_pixels(
+    name: &str,
+    width: usize,
+    height: usize,
+    rgba: &[u8],
+    palette: &Palette,
+) -> Level {
+    let mut warnings = Vec::new();
+    let (width, height) = checked_size(width, height, rgba.len() / 4, &mut warnings);
+    let n = width * height;
 
     let lut: [f32; 256] = std::array::from_fn(|c| srgb_to_linear(c as u8) as f32);
     let mut cache: HashMap<u32, Resolved, BuildHasherDefault<ColorHasher>> = HashMap::default();
-    // Material slot of each palette solid in first-use order; remapped to
-    // palette order at the end so indices do not depend on where in the
-    // image a material first appears.
-    let mut slot_of: Vec<Option<u16>> = vec![None; palette.solids.len()];
-    let mut used: Vec<usize> = Vec::new();
-    let mut overflowed = false;
+    let mut slots = Slots::new(palette.solids.len());
     let mut near: BTreeMap<usize, NearMisses> = BTreeMap::new();
 
     let mut cells = Vec::with_capacity(n);
@@ -142,88 +236,35 @@ pub(super) fn classify_pixels(
                 (r, first_time)
             }
         };
-        match resolved {
-            Resolved::Solid(p) => {
-                let slot = match slot_of.get(p).copied().flatten() {
-                    Some(s) => Some(s),
-                    None if used.len() <= u16::MAX as usize && p < slot_of.len() => {
-                        let s = used.len() as u16;
-                        slot_of[p] = Some(s);
-                        used.push(p);
-                        Some(s)
-                    }
-                    None => {
-                        overflowed = true;
-                        None
-                    }
-                };
-                match slot {
-                    Some(s) => {
-                        cells.push(Cell::Solid(s));
-                        albedo.push([0.0; 3]);
-                    }
-                    None => {
-                        cells.push(Cell::Floor);
-                        albedo.push([0.0; 3]);
-                    }
-                }
-            }
-            Resolved::Floor(a) => {
-                cells.push(Cell::Floor);
-                albedo.push(a);
-            }
+        let (cell, a) = match resolved {
+            // A solid beyond the slots a cell can index is floor.
+            Resolved::Solid(p) => (slots.of(p).map_or(Cell::Floor, Cell::Solid), [0.0; 3]),
+            Resolved::Floor(a) => (Cell::Floor, a),
             Resolved::NearMiss {
                 solid,
                 diff,
                 albedo: a,
             } => {
-                cells.push(Cell::Floor);
-                albedo.push(a);
                 let (x, y) = (i % width, i / width);
-                let e = near.entry(solid).or_insert(NearMisses {
-                    pixels: 0,
-                    colors: 0,
-                    example: (x, y, [px[0], px[1], px[2]]),
-                    min: (x, y),
-                    max: (x, y),
-                    max_diff: 0,
-                });
-                e.pixels += 1;
-                e.colors += first_time as u64;
-                e.min = (e.min.0.min(x), e.min.1.min(y));
-                e.max = (e.max.0.max(x), e.max.1.max(y));
-                e.max_diff = e.max_diff.max(diff);
+                near.entry(solid)
+                    .or_insert_with(|| NearMisses::at(x, y, [px[0], px[1], px[2]]))
+                    .record((x, y), diff, first_time);
+                (Cell::Floor, a)
             }
-        }
+        };
+        cells.push(cell);
+        albedo.push(a);
     }
     cells.resize(n, Cell::Void);
     albedo.resize(n, [0.0; 3]);
 
-    if overflowed {
+    if slots.overflowed {
         warnings.push(format!(
             "the level uses more than {} wall and emitter colours; the rest are floor",
             u16::MAX as usize + 1
         ));
     }
-
-    // Palette order for the materials actually used.
-    let mut order: Vec<usize> = (0..used.len()).collect();
-    order.sort_by_key(|&s| used[s]);
-    let mut new_slot = vec![0u16; used.len()];
-    for (new, &old) in order.iter().enumerate() {
-        new_slot[old] = new as u16;
-    }
-    if order.iter().enumerate().any(|(new, &old)| new != old) {
-        for c in &mut cells {
-            if let Cell::Solid(s) = c {
-                *s = new_slot[*s as usize];
-            }
-        }
-    }
-    let materials = order
-        .iter()
-        .map(|&s| palette.solids[used[s]].clone())
-        .collect();
+    let materials = slots.into_palette_order(&mut cells, palette);
 
     for (&solid, m) in &near {
         warnings.push(near_miss_warning(palette, name, solid, m));
