@@ -9,30 +9,20 @@
 //! * `gather_64/*`: the naive and the fast gather in the same run, on the
 //!   64 px level with 40 scattered one-pixel walls and 3 one-pixel lights.
 
-use std::path::Path;
 use std::time::Duration;
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use flatbake_core::bake::{GatherMethod, Settings, bake};
 use flatbake_core::geometry;
 use flatbake_core::level::Level;
-use flatbake_core::level::palette::Palette;
 use flatbake_core::quality::Quality;
 use flatbake_core::transport::kernel::{Falloff, Reach};
 use flatbake_core::transport::{self, Patches};
 use flatbake_synth::{self as synth, Painted};
 
 fn level(p: &Painted) -> (Level, Option<f64>) {
-    let palette = Palette::parse(
-        &p.palette_toml,
-        Path::new(&format!("{}.palette.toml", p.name)),
-    )
-    .expect("synth palettes parse");
-    let falloff = palette.settings.falloff;
-    (
-        Level::from_rgba(&p.name, p.width, p.height, &p.rgba, &palette),
-        falloff,
-    )
+    let (level, palette) = p.level().expect("synth palettes parse");
+    (level, palette.settings.falloff)
 }
 
 fn settings(q: Quality, falloff: Option<f64>) -> Settings {

@@ -27,7 +27,6 @@ use std::process::Command;
 use std::time::Instant;
 
 use flatbake_core::bake::{GatherMethod, Settings, bake};
-use flatbake_core::level::palette::Palette;
 use flatbake_core::level::{Cell, Level};
 use flatbake_core::quality::Quality;
 use flatbake_synth::{self as synth, Painted};
@@ -145,11 +144,7 @@ fn row(label: &str, size: usize, r: &Run) {
 }
 
 fn load_level(p: &Painted) -> anyhow::Result<(Level, Option<f64>)> {
-    let palette = Palette::parse(
-        &p.palette_toml,
-        Path::new(&format!("{}.palette.toml", p.name)),
-    )?;
-    let lv = Level::from_rgba(&p.name, p.width, p.height, &p.rgba, &palette);
+    let (lv, palette) = p.level()?;
     Ok((lv, palette.settings.falloff))
 }
 

@@ -14,7 +14,6 @@ use std::f64::consts::{PI, TAU};
 use flatbake_core::bake::{BakeError, Baked, Settings, bake};
 use flatbake_core::gather::Kernel;
 use flatbake_core::geometry::trace;
-use flatbake_core::level::palette::Palette;
 use flatbake_core::level::{Cell, Level};
 use flatbake_core::quality::Quality;
 use flatbake_core::transport::kernel::Reach;
@@ -870,9 +869,7 @@ fn paper_rows_just_below_1_converge_on_large_systems() {
 /// A random small level and palette from the synthetic generator.
 fn random_level(seed: u64) -> (Level, Option<f64>) {
     let p = flatbake_synth::random_small(seed);
-    let pal = Palette::parse(&p.palette_toml, std::path::Path::new("random.palette.toml"))
-        .unwrap_or_else(|e| panic!("seed {seed}: {e}"));
-    let lvl = Level::from_rgba(&p.name, p.width, p.height, &p.rgba, &pal);
+    let (lvl, pal) = p.level().unwrap_or_else(|e| panic!("seed {seed}: {e}"));
     (lvl, pal.settings.falloff)
 }
 

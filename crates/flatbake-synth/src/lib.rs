@@ -600,6 +600,31 @@ pub struct Painted {
 }
 
 impl Painted {
+    /// The level as the loader resolves it, with its palette (parsed as
+    /// `NAME.palette.toml`, the name the palette is saved under): what a
+    /// bake of the saved files would see, without touching the disk.
+    pub fn level(
+        &self,
+    ) -> Result<
+        (
+            flatbake_core::level::Level,
+            flatbake_core::level::palette::Palette,
+        ),
+        flatbake_core::level::palette::PaletteError,
+    > {
+        let path = format!("{}.palette.toml", self.name);
+        let palette =
+            flatbake_core::level::palette::Palette::parse(&self.palette_toml, Path::new(&path))?;
+        let level = flatbake_core::level::Level::from_rgba(
+            &self.name,
+            self.width,
+            self.height,
+            &self.rgba,
+            &palette,
+        );
+        Ok((level, palette))
+    }
+
     /// Finishes a level: floors that came out near a wall or emitter colour
     /// are pushed away from it (so texture noise can never turn into a
     /// near-miss warning), then the palette is rendered.
@@ -2112,14 +2137,11 @@ mod tests {
 
     #[test]
     fn the_real_parser_accepts_every_palette_and_sees_no_near_misses() {
-        use flatbake_core::level::Level;
-        use flatbake_core::level::palette::Palette;
         let randoms = (0..300).map(random_small);
         for p in all().into_iter().chain(randoms) {
-            let path = Path::new("synth").join(format!("{}.palette.toml", p.name));
-            let pal = Palette::parse(&p.palette_toml, &path)
+            let (level, _) = p
+                .level()
                 .unwrap_or_else(|e| panic!("{e}\n{}", p.palette_toml));
-            let level = Level::from_rgba(&p.name, p.width, p.height, &p.rgba, &pal);
             assert!(
                 level.warnings.is_empty(),
                 "{}: {:?}",
