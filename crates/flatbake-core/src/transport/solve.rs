@@ -87,6 +87,35 @@ pub enum SolveError {
     },
 }
 
+/// The radiosity of every patch from the solution `x` of the unknowns:
+/// the emission where nothing is reflected, and never below 0.
+fn scatter(sys: &System, e: &[f64], x: &[f64]) -> Vec<f64> {
+    let mut b = e.to_vec();
+    for (k, &i) in sys.unknown.iter().enumerate() {
+        b[i] = x[k].max(0.0);
+    }
+    b
+}
+
+/// How far `B` is from balancing energy, relative to what is emitted:
+/// `|emitted - absorbed - escaped| / emitted` with the effective lengths
+/// (0 when nothing is emitted). Exactly 0 for the exact solution of the
+/// discrete system, since `D F` is symmetric.
+pub fn balance_gap(ff: &FormFactors, rho: &[f64], e: &[f64], b: &[f64]) -> f64 {
+    let (mut emitted, mut gap) = (0.0, 0.0);
+    for i in 0..ff.n() {
+        let d = ff.dlen[i];
+        let h: f64 = ff.row(i).map(|(j, f)| f * b[j]).sum();
+        emitted += d * e[i];
+        gap += d * (e[i] - (1.0 - rho[i]) * h - b[i] * (1.0 - ff.coverage[i]));
+    }
+    if emitted > 0.0 {
+        gap.abs() / emitted
+    } else {
+        gap.abs()
+    }
+}
+
 /// Residual of the original system, `|E - (I - rho F) B|_2 / |E|_2`.
 pub fn residual(ff: &FormFactors, rho: &[f64], e: &[f64], b: &[f64]) -> f64 {
     let n = ff.n();
@@ -361,8 +390,26 @@ pub fn solve_channel(
         (direct(&sys)?, "cholesky", 0)
     } else {
         let max_iter = 50 + 4 * (sys.len() as f64).sqrt() as usize;
-        let (x, rel, it) = pcg(&sys, None, set.tolerance, max_iter);
-        if rel <= set.tolerance {
+        // CG stops on its own (symmetrised, preconditioned) residual; the
+        // answer must also meet the tolerance on the original system and
+        // balance energy to it. If it does not, CG goes on from where it
+        // stopped with a tighter target, then falls back as below.
+        let meets = |x: &[f64]| {
+            let b = scatter(&sys, e, x);
+            residual(ff, rho, e, &b) <= set.tolerance
+                && balance_gap(ff, rho, e, &b) <= set.tolerance
+        };
+        let (mut x, mut rel, mut it) = pcg(&sys, None, set.tolerance, max_iter);
+        let mut tighter = set.tolerance;
+        for _ in 0..3 {
+            if rel > set.tolerance || meets(&x) {
+                break;
+            }
+            tighter *= 0.01;
+            let (x2, rel2, it2) = pcg(&sys, Some(&x), tighter, max_iter);
+            (x, rel, it) = (x2, rel2, it + it2);
+        }
+        if rel <= set.tolerance && meets(&x) {
             (x, "cg", it)
         } else if sys.len() <= set.fallback_max {
             (direct(&sys)?, "cg-then-cholesky", it)
@@ -377,9 +424,7 @@ pub fn solve_channel(
             (x2, "cg", it + it2)
         }
     };
-    for (k, &i) in sys.unknown.iter().enumerate() {
-        b[i] = x[k].max(0.0);
-    }
+    b = scatter(&sys, e, &x);
     let res = residual(ff, rho, e, &b);
     Ok(ChannelSolution {
         radiosity: b,
