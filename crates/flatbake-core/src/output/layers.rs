@@ -46,9 +46,21 @@ pub fn groups(level: &Level, r: &Responses) -> Vec<Group> {
                         }
                     })
                     .collect();
-                // Two names that spell the same file name get a number.
-                if tag.is_empty() || out.iter().any(|g| g.file_tag == tag) {
-                    tag = format!("{tag}{}", out.len());
+                // Two names that spell the same file name get a number, the
+                // first free one: a numbered tag may itself be taken ("b_2"
+                // and "b_" before "b!"). Tags that differ only in case would
+                // be one file on a case-insensitive disk, so they clash too.
+                let taken = |t: &str| {
+                    t.is_empty() || out.iter().any(|g| g.file_tag.eq_ignore_ascii_case(t))
+                };
+                if taken(&tag) {
+                    let base = std::mem::take(&mut tag);
+                    let mut k = out.len();
+                    tag = format!("{base}{k}");
+                    while taken(&tag) {
+                        k += 1;
+                        tag = format!("{base}{k}");
+                    }
                 }
                 out.push(Group {
                     name,
@@ -198,4 +210,66 @@ pub fn encode_layers(
     json.push(b'\n');
     files.push(Encoded { kind, bytes: json });
     Ok(files)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::level::material::{Material, MaterialKind};
+
+    fn emitter(group: &str) -> Material {
+        Material {
+            color: [255, 255, 255],
+            kind: MaterialKind::Emitter,
+            reflectance: [0.0; 3],
+            emission: [1.0; 3],
+            group: Some(group.into()),
+            line: None,
+        }
+    }
+
+    /// Groups whose names spell the same file name, directly or once
+    /// numbered, or only differ in case, still get one file each.
+    #[test]
+    fn every_group_gets_its_own_file_tag() {
+        for names in [
+            vec!["b_2", "b_", "b!"],
+            vec!["b!", "b?", "b_", "b_1", "b_2"],
+            vec!["Lamp", "lamp", "LAMP"],
+            vec!["", "!", "_"],
+        ] {
+            let level = Level {
+                name: "t".into(),
+                width: 1,
+                height: 1,
+                cells: vec![crate::level::Cell::Floor],
+                albedo: vec![[0.0; 3]],
+                materials: names.iter().map(|n| emitter(n)).collect(),
+                warnings: vec![],
+            };
+            let r = Responses {
+                width: 1,
+                height: 1,
+                emitters: (0..names.len()).collect(),
+                rho_class_of: [0; 3],
+                rho_classes: 1,
+                images: vec![vec![0.0]; names.len()],
+                traced_emission: 1.0,
+            };
+            let g = groups(&level, &r);
+            assert_eq!(g.len(), names.len(), "{names:?}");
+            for (i, a) in g.iter().enumerate() {
+                assert!(!a.file_tag.is_empty(), "{names:?}: {g:?}");
+                for b in &g[i + 1..] {
+                    assert!(
+                        !a.file_tag.eq_ignore_ascii_case(&b.file_tag),
+                        "{names:?}: {} and {} share {}",
+                        a.name,
+                        b.name,
+                        a.file_tag
+                    );
+                }
+            }
+        }
+    }
 }
