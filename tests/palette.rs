@@ -273,6 +273,15 @@ fn wrong_types_are_reported() {
         2,
         &["bounces -1 must be a whole number >= 0"],
     );
+    // A bounce count that would run for hours is refused, with the way out.
+    fails(
+        "[bake]\nbounces = 4294967295\n",
+        2,
+        &[
+            "bounces 4294967295 is more than 1000",
+            "leave bounces out for the full solve",
+        ],
+    );
     fails(
         "[bake]\ntolerance = 256\n",
         2,

@@ -51,6 +51,12 @@ use crate::transport::kernel::Falloff;
 use crate::transport::solve::SolveError;
 use crate::transport::{FormFactors, Patches};
 
+/// The most bounces a truncated series may have (`--bounces`, a palette's
+/// `[bake] bounces`). Each costs one pass over the form factors, and by a
+/// thousand bounces even reflectance 0.99 has converged to 4e-5: for more,
+/// leave `bounces` out and get the full solve.
+pub const MAX_BOUNCES: u32 = 1000;
+
 /// How the floor gather is done.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum GatherMethod {
@@ -83,7 +89,8 @@ pub struct Settings {
     pub kernel: Kernel,
     /// The floor gather. Default: fast.
     pub gather: GatherMethod,
-    /// Truncate the bounce series (0 = direct light only). Default: none.
+    /// Truncate the bounce series (0 = direct light only), at most
+    /// [`MAX_BOUNCES`]. Default: none.
     pub bounces: Option<u32>,
     /// Sample points per patch for the naive gather. Default 8.
     pub naive_samples: usize,

@@ -228,6 +228,16 @@ impl<'a> Parser<'a> {
                             format!("bounces {} must be a whole number >= 0", self.src(&span)),
                         )
                     })?;
+                    if n > crate::bake::MAX_BOUNCES {
+                        return Err(self.err(
+                            &span,
+                            format!(
+                                "bounces {} is more than {}; leave bounces out for the full solve",
+                                self.src(&span),
+                                crate::bake::MAX_BOUNCES
+                            ),
+                        ));
+                    }
                     s.bounces = Some(n);
                 }
                 "tolerance" => {
