@@ -13,7 +13,7 @@ use std::time::Duration;
 use clap::{Args, Parser, Subcommand};
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-use flatbake_core::bake::GatherMethod;
+use flatbake_core::bake::{GatherMethod, MAX_BOUNCES};
 use flatbake_core::batch::{self, BatchOptions, LevelOutcome, Observer};
 use flatbake_core::gather::Kernel;
 use flatbake_core::level::LoadLimits;
@@ -22,6 +22,10 @@ use flatbake_core::quality::Quality;
 
 /// Exit status when every level baked.
 pub const EXIT_OK: u8 = 0;
+
+/// The most worker threads `--jobs` accepts: far above any core count, far
+/// below what takes the system minutes to spawn.
+pub const MAX_JOBS: i64 = 512;
 /// Exit status when at least one level failed.
 pub const EXIT_FAILED: u8 = 1;
 /// Exit status for a malformed command line (clap's own convention).
@@ -60,8 +64,8 @@ pub struct RelightArgs {
     /// New emission of an emitter colour: "#rrggbb=R,G,B" or "#rrggbb=X" (repeatable).
     #[arg(long, value_name = "COLOR=R,G,B")]
     pub emission: Vec<String>,
-    /// Output folder.
-    #[arg(short = 'o', long = "out", default_value = "out")]
+    /// Output folder; never the folder of the level's bake.
+    #[arg(short = 'o', long = "out", default_value = "out/relit")]
     pub out: PathBuf,
     /// Refuse the cache unless it was baked from this level image.
     #[arg(long, value_name = "FILE")]
@@ -121,9 +125,9 @@ pub struct OutputArgs {
     /// Multiply the PNG lightmaps by this (overrides the palette).
     #[arg(long, value_name = "X")]
     pub exposure: Option<f64>,
-    /// Worker threads (default: all cores).
-    #[arg(short, long, value_name = "N")]
-    pub jobs: Option<usize>,
+    /// Worker threads, 1 to 512 (default: all cores).
+    #[arg(short, long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=MAX_JOBS))]
+    pub jobs: Option<u16>,
 }
 
 #[derive(Args, Debug)]
@@ -134,9 +138,9 @@ pub struct SweepArgs {
     /// Folder for accuracy.csv, accuracy.md and accuracy.png.
     #[arg(short = 'o', long = "out", default_value = "out/sweep")]
     pub out: PathBuf,
-    /// Worker threads (default: all cores).
-    #[arg(short, long, value_name = "N")]
-    pub jobs: Option<usize>,
+    /// Worker threads, 1 to 512 (default: all cores).
+    #[arg(short, long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=MAX_JOBS))]
+    pub jobs: Option<u16>,
 }
 
 #[derive(Args, Debug, Clone)]
@@ -152,8 +156,8 @@ pub struct BakeArgs {
     /// Floor gather: fast exact visibility, or the paper's naive ray tests (baseline).
     #[arg(long, value_enum, default_value_t = GatherArg::Fast)]
     pub gather: GatherArg,
-    /// Truncate the bounce series: 0 = direct light only (overrides the palette).
-    #[arg(long, value_name = "N")]
+    /// Truncate the bounce series: 0 = direct light only, at most 1000 (overrides the palette).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=MAX_BOUNCES as i64))]
     pub bounces: Option<u32>,
     /// Refuse images with more pixels than this (checked before decoding).
     #[arg(long, value_name = "N", default_value_t = LoadLimits::default().max_pixels)]
@@ -234,6 +238,16 @@ pub struct PaletteArgs {
 
 /// Parses the process arguments and runs; the whole program.
 pub fn main() -> ExitCode {
+    // A panic inside a level's bake becomes that level's failure (the batch
+    // catches it and names the file); say where it happened in one line, for
+    // the bug report, instead of the default message and backtrace.
+    std::panic::set_hook(Box::new(|info| {
+        let at = info
+            .location()
+            .map(|l| format!(" at {}:{}", l.file(), l.line()))
+            .unwrap_or_default();
+        eprintln!("flatbake: internal error{at}");
+    }));
     let cli = match Cli::try_parse() {
         Ok(c) => c,
         Err(e) => {
@@ -325,9 +339,7 @@ pub fn batch_options(a: &BakeArgs) -> Result<BatchOptions, String> {
     {
         return Err(format!("--exposure must be a positive number, not {x}"));
     }
-    if o.jobs == Some(0) {
-        return Err("--jobs must be at least 1".into());
-    }
+
     Ok(BatchOptions {
         out_dir: o.out.clone(),
         quality: o.quality.into(),
@@ -357,10 +369,10 @@ pub fn batch_options(a: &BakeArgs) -> Result<BatchOptions, String> {
 }
 
 /// Runs `f` on a thread pool of `jobs` threads (all cores when `None`).
-pub fn with_jobs<T: Send>(jobs: Option<usize>, f: impl FnOnce() -> T + Send) -> Result<T, String> {
+pub fn with_jobs<T: Send>(jobs: Option<u16>, f: impl FnOnce() -> T + Send) -> Result<T, String> {
     let mut b = rayon::ThreadPoolBuilder::new();
     if let Some(n) = jobs {
-        b = b.num_threads(n);
+        b = b.num_threads(usize::from(n));
     }
     let pool = b
         .build()
@@ -630,6 +642,16 @@ impl Progress {
 }
 
 impl Observer for Progress {
+    fn waiting_for_folder(&self, dir: &Path) {
+        self.println(
+            format!(
+                "flatbake: {} is being written by another flatbake; waiting for it to finish",
+                dir.display()
+            ),
+            false,
+        );
+    }
+
     fn level_started(&self, path: &Path) {
         if self.multi.is_hidden() {
             return;

@@ -527,6 +527,16 @@ fn full_disk_says_so_and_earlier_outputs_survive() {
         after, before,
         "earlier outputs changed or temporary files left"
     );
+    // Every output is staged before any is replaced: the earlier set is
+    // whole, still up to date for its own settings, and the new settings
+    // bake once there is room.
+    std::fs::remove_file(mnt.join("filler")).unwrap();
+    let o = flatbake_mixed(&[&"bake", &lvl, &"-o", &mnt]);
+    assert_exit(&o, EXIT_OK);
+    assert_says(&o, &["1 up to date"]);
+    let o = flatbake_mixed(&[&"bake", &lvl, &"-o", &mnt, &"--exposure", &"2"]);
+    assert_exit(&o, EXIT_OK);
+    assert_says(&o, &["1 level baked"]);
 }
 
 // ---------------------------------------------------------------------------
@@ -607,7 +617,10 @@ fn bad_flag_values_are_usage_errors() {
         ("--falloff", "0", "--falloff must be a positive number"),
         ("--falloff", "nan", "--falloff must be a positive number"),
         ("--exposure", "-1", "--exposure must be a positive number"),
-        ("--jobs", "0", "--jobs must be at least 1"),
+        ("--jobs", "0", "0 is not in 1..=512"),
+        ("--jobs", "100000", "100000 is not in 1..=512"),
+        ("--bounces", "1001", "1001 is not in 0..=1000"),
+        ("--bounces", "4294967295", "4294967295 is not in 0..=1000"),
     ] {
         let arg = format!("{flag}={value}");
         let o = flatbake_mixed(&[&"bake", &lvl, &"-o", &dir.path().join("out"), &arg]);
@@ -655,4 +668,26 @@ fn a_folder_without_levels_is_named() {
     let o = flatbake_mixed(&[&"bake", &empty, &"-o", &dir.path().join("out")]);
     assert_exit(&o, EXIT_FAILED);
     assert_says(&o, &["empty", "holds no level images"]);
+}
+
+/// A malformed PNG that makes the decoder panic (a 4-byte PLTE with a tRNS
+/// chunk, valid CRCs) is that level's failure, named, and the level after it
+/// still bakes: the process neither aborts nor exits 101.
+#[test]
+fn a_png_that_panics_the_decoder_fails_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let levels = dir.path().join("levels");
+    std::fs::create_dir(&levels).unwrap();
+    let out = dir.path().join("out");
+    copy(&levels, "png_plte_trns_panic.png", "a_bad.png");
+    paint(&levels, "b_good", ROOM, Some(PALETTE));
+    let o = flatbake_mixed(&[&"bake", &levels, &"-o", &out, &"--jobs", &"1"]);
+    assert!(out.join("b_good.lightmap.png").is_file(), "{}", stderr(&o));
+    match o.status.code() {
+        // The decoder refused or panicked: named, and the batch failed.
+        Some(1) => assert_says(&o, &["a_bad.png", "1 failed"]),
+        // A decoder that reads it: baked like any other level.
+        Some(0) => assert!(out.join("a_bad.lightmap.png").is_file()),
+        other => panic!("exit {other:?}: {}", stderr(&o)),
+    }
 }

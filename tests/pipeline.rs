@@ -336,11 +336,28 @@ fn relight_refuses_other_versions_levels_and_damaged_files() {
     assert!(o.status.success(), "{}", stderr(&o));
     let cache = out.join("room.flatbake");
     let bytes = std::fs::read(&cache).expect("cache");
+    let relit = dir.path().join("relit");
     let relight = |file: &Path, extra: &[&str]| {
-        let mut args = vec!["relight", s(file), "-o", s(&out)];
+        let mut args = vec!["relight", s(file), "-o", s(&relit)];
         args.extend_from_slice(extra);
         flatbake(&args)
     };
+
+    // A device is never read into memory.
+    #[cfg(unix)]
+    {
+        let o = relight(Path::new("/dev/zero"), &[]);
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        assert!(
+            stderr(&o).contains("is not a flatbake cache"),
+            "{}",
+            stderr(&o)
+        );
+    }
+    // Emission a palette may not give, a relight may not either.
+    let o = relight(&cache, &["--emission", "#ffa000=1e300"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("is too large"), "{}", stderr(&o));
 
     // Not a cache at all.
     let o = relight(&png, &[]);
@@ -401,6 +418,40 @@ fn relight_refuses_other_versions_levels_and_damaged_files() {
     // The genuine cache still works.
     let o = relight(&cache, &["--emission", "#ffa000=1"]);
     assert!(o.status.success(), "{}", stderr(&o));
+
+    // Never into the bake's own folder: its lightmap stays the bake's, and
+    // the bake stays up to date.
+    let before = std::fs::read(out.join("room.lightmap.png")).expect("lightmap");
+    let o = flatbake(&[
+        "relight",
+        s(&cache),
+        "--emission",
+        "#ffa000=1",
+        "-o",
+        s(&out),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("holds the bake of room"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(
+        std::fs::read(out.join("room.lightmap.png")).expect("lightmap"),
+        before
+    );
+    // The default folder is its own (out/relit), beside the bake's.
+    let o = std::process::Command::new(BIN)
+        .args(["relight", s(&cache), "--emission", "#ffa000=1"])
+        .current_dir(dir.path())
+        .output()
+        .expect("flatbake runs");
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(dir.path().join("out/relit/room.lightmap.png").is_file());
+    assert_eq!(
+        std::fs::read(out.join("room.lightmap.png")).expect("lightmap"),
+        before
+    );
 }
 
 #[test]
@@ -434,6 +485,23 @@ fn unchanged_batch_skips_and_force_or_a_palette_change_bakes() {
     assert!(other.contains("1 level baked"), "{other}");
     let back = bake(&[]);
     assert!(back.contains("1 level baked"), "{back}");
+
+    // An output that something else rewrote (a person, a relight, another
+    // process) is not the bake's: baked again, and put back.
+    let ours = std::fs::read(out.join("room.lightmap.png")).expect("lightmap");
+    std::fs::copy(out.join("room.lit.png"), out.join("room.lightmap.png")).expect("overwrite");
+    let rewritten = bake(&[]);
+    assert!(rewritten.contains("1 level baked"), "{rewritten}");
+    assert_eq!(
+        std::fs::read(out.join("room.lightmap.png")).expect("lightmap"),
+        ours
+    );
+
+    // A temporary file that a killed bake left behind is removed.
+    let leftover = out.join(".flatbake-killed.tmp");
+    std::fs::write(&leftover, b"half a lightmap").expect("leftover");
+    let _ = bake(&[]);
+    assert!(!leftover.exists(), "stale temporary file kept");
 
     // A missing output is baked again.
     std::fs::remove_file(out.join("room.lit.png")).expect("remove");
@@ -508,4 +576,74 @@ fn watch_command_bakes_and_rebakes() {
     if let Err(e) = result {
         std::panic::resume_unwind(e);
     }
+}
+
+/// Panics inside a level's bake while it reports its stages.
+struct PanicsOn(&'static str);
+
+impl flatbake_core::batch::Observer for PanicsOn {
+    fn stage(&self, path: &Path, _stage: &str) {
+        if path.file_stem().is_some_and(|s| s == self.0) {
+            panic!("a test panic in {}", self.0);
+        }
+    }
+}
+
+/// A panic while one level bakes (a decoder's or a bug) is that level's
+/// failure, naming its file; the other levels of the batch still bake.
+#[test]
+fn a_panic_in_one_level_fails_that_level_and_the_batch_goes_on() {
+    use flatbake_core::batch::{self, BatchOptions, LevelOutcome};
+    let dir = tempfile::tempdir().expect("tempdir");
+    let good = write_level(dir.path(), "good", &default_palette());
+    let bad = write_level(dir.path(), "bad", &default_palette());
+    let opts = BatchOptions {
+        out_dir: dir.path().join("out"),
+        ..BatchOptions::default()
+    };
+    let outcomes = batch::run(&[bad.clone(), good.clone()], &opts, &PanicsOn("bad"));
+    assert_eq!(outcomes.len(), 2);
+    for o in &outcomes {
+        match o {
+            LevelOutcome::Failed { path, error } => {
+                assert_eq!(path, &bad);
+                let msg = error.to_string();
+                assert!(
+                    msg.contains("bad.png") && msg.contains("a test panic in bad"),
+                    "{msg}"
+                );
+            }
+            LevelOutcome::Baked { path, .. } => assert_eq!(path, &good),
+            other => panic!("unexpected outcome {other:?}"),
+        }
+    }
+    assert!(dir.path().join("out/good.lightmap.png").is_file());
+    assert!(!dir.path().join("out/bad.lightmap.png").exists());
+}
+
+/// A bake into a folder that another process is writing waits for it (and
+/// says so) instead of mixing the two processes' files.
+#[cfg(unix)]
+#[test]
+fn a_second_bake_into_a_held_folder_waits() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let png = write_level(dir.path(), "room", &default_palette());
+    let out = dir.path().join("out");
+    let lock = flatbake_core::batch::FolderLock::acquire(&out, || panic!("nobody holds it yet"));
+    assert!(lock.is_held());
+    let child = std::process::Command::new(BIN)
+        .args(["bake", s(&png), "-o", s(&out), "-q", "draft"])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("start flatbake");
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    assert!(
+        !out.join("room.lightmap.png").exists(),
+        "baked into a folder another process holds"
+    );
+    drop(lock);
+    let o = child.wait_with_output().expect("flatbake ends");
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("is being written by another flatbake; waiting"), "{}", stderr(&o));
+    assert!(out.join("room.lightmap.png").is_file());
 }

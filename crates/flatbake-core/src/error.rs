@@ -63,6 +63,30 @@ pub enum Error {
         /// The folder.
         path: PathBuf,
     },
+    /// A relight was asked to write into the folder that holds the bake of
+    /// the same level, whose outputs it would replace.
+    #[error(
+        "{}: holds the bake of {name} ({name}.stamp.json); a relight would overwrite the bake's own outputs, so it writes into another folder",
+        .dir.display()
+    )]
+    RelightOverBake {
+        /// The output folder asked for.
+        dir: PathBuf,
+        /// The level's name.
+        name: String,
+    },
+    /// Decoding or baking the level panicked (in flatbake or in a library
+    /// it uses): a bug, contained to this level.
+    #[error(
+        "{}: internal error while loading or baking this level ({message}); the other levels are not affected; please report this file",
+        .path.display()
+    )]
+    Panic {
+        /// The level image.
+        path: PathBuf,
+        /// The panic's message.
+        message: String,
+    },
 }
 
 impl Error {

@@ -184,6 +184,49 @@ pub trait Observer: Sync {
     fn stage(&self, _path: &Path, _stage: &str) {}
     /// A level is finished, baked or failed.
     fn level_done(&self, _outcome: &LevelOutcome) {}
+    /// Another process is writing the output folder: the batch waits for
+    /// it to finish before baking anything.
+    fn waiting_for_folder(&self, _dir: &Path) {}
+}
+
+/// The output folder, held for one process while it writes: two bakes (or a
+/// bake and a watch) into one folder take turns instead of mixing their
+/// files. An advisory lock on the folder itself (no lock file is left in
+/// it), released when this is dropped. Where the folder cannot be created,
+/// opened or locked (another platform, a file system without locks), it is
+/// not held and each level reports its own output error.
+#[derive(Debug)]
+pub struct FolderLock(#[allow(dead_code)] Option<std::fs::File>);
+
+impl FolderLock {
+    /// Takes the lock on `dir` (creating it), waiting for another holder;
+    /// `waiting` is called once if it has to wait.
+    pub fn acquire(dir: &Path, waiting: impl FnOnce()) -> FolderLock {
+        if output::ensure_output_dir(dir).is_err() {
+            return FolderLock(None);
+        }
+        let dir = if dir.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            dir
+        };
+        let Ok(f) = std::fs::File::open(dir) else {
+            return FolderLock(None);
+        };
+        match f.try_lock() {
+            Ok(()) => FolderLock(Some(f)),
+            Err(std::fs::TryLockError::WouldBlock) => {
+                waiting();
+                FolderLock(f.lock().is_ok().then_some(f))
+            }
+            Err(_) => FolderLock(None),
+        }
+    }
+
+    /// Whether the lock is held.
+    pub fn is_held(&self) -> bool {
+        self.0.is_some()
+    }
 }
 
 /// An observer that ignores everything.
@@ -235,9 +278,34 @@ pub fn is_level_file(p: &Path) -> bool {
     LEVEL_EXTENSIONS.contains(&ext.as_str()) && !names::is_output_image(name)
 }
 
+/// Removes the temporary files that a killed flatbake left in `dir`. Only
+/// called while holding the folder's lock: then no other flatbake is writing
+/// there, and every such file is a leftover.
+fn remove_stale_temporaries(dir: &Path) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let name = e.file_name();
+        let name = name.to_string_lossy();
+        if name.starts_with(names::TEMP_PREFIX)
+            && name.ends_with(names::TEMP_SUFFIX)
+            && e.file_type().is_ok_and(|t| t.is_file())
+        {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
+}
+
 /// Bakes every level; returns the outcomes in input order.
 pub fn run(paths: &[PathBuf], opts: &BatchOptions, observer: &dyn Observer) -> Vec<LevelOutcome> {
     let levels = collect_levels(paths);
+    // Up-to-date checks and writes happen under the folder's lock, so that
+    // they see no other process's half-written set.
+    let lock = FolderLock::acquire(&opts.out_dir, || observer.waiting_for_folder(&opts.out_dir));
+    if lock.is_held() {
+        remove_stale_temporaries(&opts.out_dir);
+    }
     let clashes = output_clashes(&levels);
     let fingerprint = opts.fingerprint();
     levels
@@ -259,7 +327,7 @@ pub fn run(paths: &[PathBuf], opts: &BatchOptions, observer: &dyn Observer) -> V
                     first: first.clone(),
                     name: names::level_name(path),
                 }),
-                None => bake_one(path, opts, observer),
+                None => bake_isolated(path, opts, observer),
             };
             let outcome = match result {
                 Ok(report) => LevelOutcome::Baked {
@@ -275,6 +343,25 @@ pub fn run(paths: &[PathBuf], opts: &BatchOptions, observer: &dyn Observer) -> V
             outcome
         })
         .collect()
+}
+
+/// [`bake_one`], with a panic anywhere in it (a decoder's, or a bug of
+/// ours) turned into this level's failure, so that the batch goes on.
+fn bake_isolated(path: &Path, opts: &BatchOptions, observer: &dyn Observer) -> Result<Report> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        bake_one(path, opts, observer)
+    }))
+    .unwrap_or_else(|payload| {
+        let message = payload
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| payload.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "no message".into());
+        Err(Error::Panic {
+            path: path.to_path_buf(),
+            message,
+        })
+    })
 }
 
 /// For each level, the earlier level of the batch with the same output
@@ -364,13 +451,27 @@ pub fn bake_one(path: &Path, opts: &BatchOptions, observer: &dyn Observer) -> Re
         .map(|k| k.file_name(&level.name))
         .collect();
     let dir = &opts.out_dir;
-    output::write_files(dir, &level.name, &images)?;
-    output::write_files(dir, &level.name, &extra)?;
+    // One transaction. Every output is staged in full first, so a full disk
+    // or a failed write replaces nothing; then the stamp goes, the outputs
+    // are renamed into place (images, report, the rest), and the new stamp
+    // comes last. Whatever fails in between leaves no stamp: not up to date.
+    let mut staged = output::stage_files(dir, &level.name, &images)?;
+    staged.extend(output::stage_files(dir, &level.name, &extra)?);
     let seconds = start.elapsed().as_secs_f64();
     report.timings.write = seconds;
     report.timings.total += seconds;
     let json = output::encode_report(dir, &level.name, &report)?;
-    output::write_files(dir, &level.name, &[json])?;
-    stamp::write(&recipe, dir, &inputs, &report.outputs)?;
+    let report_file = output::stage_files(dir, &level.name, std::slice::from_ref(&json))?;
+    staged.splice(images.len()..images.len(), report_file);
+    stamp::invalidate(&recipe, dir)?;
+    output::commit_files(staged)?;
+    let written: Vec<(String, String)> = images
+        .iter()
+        .chain([&json])
+        .chain(&extra)
+        .map(|f| (f.kind.file_name(&level.name), stamp::content_hash(&f.bytes)))
+        .collect();
+    debug_assert!(written.iter().map(|(n, _)| n).eq(report.outputs.iter()));
+    stamp::write(&recipe, dir, &inputs, &written)?;
     Ok(report)
 }

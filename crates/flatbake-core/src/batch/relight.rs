@@ -30,6 +30,12 @@ pub enum EmissionError {
     /// Negative, infinite or NaN.
     #[error("--emission: emission must be finite and >= 0, not {0:?}")]
     Range(String),
+    /// Larger than a palette may give.
+    #[error(
+        "--emission: {0:?} is too large: at most {max:e}, as in a palette (light beyond the 32-bit float range of the outputs cannot be stored)",
+        max = crate::level::palette::MAX_EMISSION
+    )]
+    TooLarge(String),
 }
 
 /// Parses `--emission "#rrggbb=R,G,B"` (or `=X` for grey).
@@ -51,6 +57,9 @@ pub fn parse_emission(s: &str) -> Result<([u8; 3], [f64; 3]), EmissionError> {
     };
     if e.iter().any(|x| !x.is_finite() || *x < 0.0) {
         return Err(EmissionError::Range(v.to_string()));
+    }
+    if e.iter().any(|&x| x > crate::level::palette::MAX_EMISSION) {
+        return Err(EmissionError::TooLarge(v.to_string()));
     }
     Ok((color, e))
 }
@@ -118,6 +127,19 @@ pub fn relight(cache_path: &Path, opts: &RelightOptions) -> Result<Report> {
     // Everything is encoded before anything is written, so that the report
     // on disk lists every file of the relight, layers included.
     let write = Instant::now();
+    // A bake's folder is the bake's: a relit lightmap there would sit
+    // beside the bake's stamp, and the next bake would call it up to date.
+    if opts
+        .out_dir
+        .join(OutputKind::Stamp.file_name(&level.name))
+        .exists()
+    {
+        return Err(Error::RelightOverBake {
+            dir: opts.out_dir.clone(),
+            name: level.name.clone(),
+        });
+    }
+    let _lock = super::FolderLock::acquire(&opts.out_dir, || {});
     output::ensure_output_dir(&opts.out_dir)?;
     let images = output::encode_images(&level, &map, &out_opts)?;
     let layers = if opts.layers {
@@ -180,6 +202,8 @@ mod tests {
             "#fffadc=1,2",
             "#fffadc=-1",
             "#fffadc=x",
+            "#fffadc=1e300",
+            "#fffadc=1,1,2e15",
         ] {
             assert!(parse_emission(bad).is_err(), "{bad}");
         }

@@ -1,8 +1,12 @@
 //! Incremental bakes: `NAME.stamp.json` in the output folder records a
 //! content hash of what a level's outputs were made from (image bytes,
 //! palette bytes, settings, flatbake version) and which files were written.
-//! A level whose hash is unchanged and whose outputs all still exist is up to
-//! date and is not baked again. Hashes, not timestamps: touching a file or
+//! and the blake3 of every one of them. A level whose input hash is
+//! unchanged and whose outputs all still hold exactly the bytes the bake
+//! wrote is up to date and is not baked again; anything else that wrote into
+//! the folder (a person, a relight, another process, a bake that failed
+//! half-way) means a re-bake. The stamp is removed before a bake replaces
+//! any output and written last, so a bake that fails leaves no stamp. Hashes, not timestamps: touching a file or
 //! checking it out again does not trigger a bake, and an edit that keeps the
 //! same timestamp is never missed.
 
@@ -46,6 +50,13 @@ pub struct Stamp {
     pub inputs: String,
     /// Files written, relative to the output folder.
     pub outputs: Vec<String>,
+    /// blake3 of each of `outputs`' bytes, hex, in the same order.
+    pub hashes: Vec<String>,
+}
+
+/// The blake3 of an output's bytes, as the stamp records it.
+pub fn content_hash(bytes: &[u8]) -> String {
+    blake3::hash(bytes).to_hex().to_string()
 }
 
 /// Hashes what the outputs of `recipe`'s level depend on.
@@ -95,8 +106,9 @@ fn stamp_path(recipe: &Recipe, out_dir: &Path) -> std::path::PathBuf {
 }
 
 /// True when the outputs of `recipe`'s level in `out_dir` were made from the
-/// same inputs and all still exist. Any doubt (no stamp, unreadable stamp,
-/// unreadable input) means "not up to date".
+/// same inputs and all still hold the bytes the bake wrote. Any doubt (no
+/// stamp, unreadable stamp, unreadable input or output) means "not up to
+/// date".
 pub fn up_to_date(recipe: &Recipe, out_dir: &Path) -> bool {
     let Ok(text) = std::fs::read(stamp_path(recipe, out_dir)) else {
         return false;
@@ -110,22 +122,38 @@ pub fn up_to_date(recipe: &Recipe, out_dir: &Path) -> bool {
     stamp.flatbake == env!("CARGO_PKG_VERSION")
         && stamp.inputs == now.key
         && !stamp.outputs.is_empty()
-        && stamp.outputs.iter().all(|o| out_dir.join(o).is_file())
+        && stamp.outputs.len() == stamp.hashes.len()
+        && stamp.outputs.iter().zip(&stamp.hashes).all(|(o, h)| {
+            std::fs::read(out_dir.join(o)).is_ok_and(|bytes| content_hash(&bytes) == *h)
+        })
 }
 
-/// Records that the `outputs` of `recipe`'s level were made from `inputs`;
-/// written last, after every output, so that an interrupted bake is never
-/// stamped.
+/// Removes the stamp of `recipe`'s level from `out_dir`, if there is one:
+/// done before a bake replaces any output, so that from then on, until the
+/// new stamp is written last, the level is not up to date whatever happens.
+pub fn invalidate(recipe: &Recipe, out_dir: &Path) -> Result<(), OutputError> {
+    let path = stamp_path(recipe, out_dir);
+    match std::fs::remove_file(&path) {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+        Err(error) => Err(OutputError::Write { path, error }),
+    }
+}
+
+/// Records that the `outputs` (file name and content hash) of `recipe`'s
+/// level were made from `inputs`; written last, after every output, so that
+/// an interrupted bake is never stamped.
 pub fn write(
     recipe: &Recipe,
     out_dir: &Path,
     inputs: &Inputs,
-    outputs: &[String],
+    outputs: &[(String, String)],
 ) -> Result<(), OutputError> {
     let stamp = Stamp {
         flatbake: env!("CARGO_PKG_VERSION").into(),
         inputs: inputs.key.clone(),
-        outputs: outputs.to_vec(),
+        outputs: outputs.iter().map(|(name, _)| name.clone()).collect(),
+        hashes: outputs.iter().map(|(_, hash)| hash.clone()).collect(),
     };
     let path = stamp_path(recipe, out_dir);
     let mut json = serde_json::to_vec_pretty(&stamp).map_err(|e| OutputError::Encode {

@@ -25,6 +25,11 @@ use crate::level::material::{Material, MaterialKind, hex_color};
 use crate::level::{Cell, Level};
 use crate::output::{Depth, OutputOptions};
 
+/// The largest cache `relight` reads: 8 GiB, far above the cache of any
+/// level that bakes on a desktop machine (a 2048 x 2048 level with eight
+/// light groups writes about 400 MB).
+pub const MAX_CACHE_BYTES: u64 = 8 << 30;
+
 /// First bytes of every cache file.
 pub const MAGIC: &[u8; 16] = b"flatbake-cache\n\0";
 /// Bumped whenever [`Cache`] changes shape.
@@ -245,7 +250,9 @@ impl Cache {
         let cache: Cache = postcard::from_bytes(payload).map_err(|e| damaged(&e.to_string()))?;
         // Cross-checks, so that a well-formed but inconsistent file cannot
         // index out of bounds later.
-        let n = cache.width * cache.height;
+        let Some(n) = cache.width.checked_mul(cache.height) else {
+            return Err(damaged("inconsistent sizes"));
+        };
         let r = &cache.responses;
         if cache.cells.len() != n
             || cache.albedo.len() != n
@@ -267,11 +274,36 @@ impl Cache {
     }
 
     /// Reads a cache file.
+    ///
+    /// Only a regular file of at most [`MAX_CACHE_BYTES`] is read: a device
+    /// such as `/dev/zero`, or a file that grows while it is read, is
+    /// refused instead of filling memory.
     pub fn read(path: &Path) -> Result<Cache, CacheError> {
-        let bytes = std::fs::read(path).map_err(|source| CacheError::Read {
+        use std::io::Read;
+        let read_err = |source| CacheError::Read {
             path: path.to_path_buf(),
             source,
-        })?;
+        };
+        let meta = std::fs::metadata(path).map_err(read_err)?;
+        if !meta.is_file() {
+            return Err(CacheError::NotACache {
+                path: path.to_path_buf(),
+            });
+        }
+        let too_large = || CacheError::Damaged {
+            path: path.to_path_buf(),
+            why: format!("larger than the {MAX_CACHE_BYTES}-byte limit of a cache"),
+        };
+        if meta.len() > MAX_CACHE_BYTES {
+            return Err(too_large());
+        }
+        let mut bytes = Vec::with_capacity(meta.len() as usize);
+        std::fs::File::open(path)
+            .and_then(|f| f.take(MAX_CACHE_BYTES + 1).read_to_end(&mut bytes))
+            .map_err(read_err)?;
+        if bytes.len() as u64 > MAX_CACHE_BYTES {
+            return Err(too_large());
+        }
         Cache::from_bytes(&bytes, path)
     }
 

@@ -211,6 +211,13 @@ pub fn ensure_output_dir(dir: &Path) -> Result<(), OutputError> {
 /// is flushed to disk and renamed into place, so a failure never leaves a
 /// half-written file and never destroys the previous file of that name.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
+    let tmp = stage_io(path, bytes)?;
+    persist_io(tmp, path)
+}
+
+/// The first half of [`write_atomic`]: `bytes` in a temporary file beside
+/// `path`, flushed to disk, not yet in place.
+fn stage_io(path: &Path, bytes: &[u8]) -> io::Result<tempfile::NamedTempFile> {
     let dir = dir_or_current(path.parent().unwrap_or(Path::new("")));
     let mut builder = tempfile::Builder::new();
     // A leftover from a killed process is recognisable and hidden.
@@ -225,6 +232,12 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
     let mut tmp = builder.tempfile_in(dir)?;
     tmp.write_all(bytes)?;
     tmp.as_file().sync_all()?;
+    Ok(tmp)
+}
+
+/// The second half of [`write_atomic`]: the staged file renamed into place.
+fn persist_io(tmp: tempfile::NamedTempFile, path: &Path) -> io::Result<()> {
+    let dir = dir_or_current(path.parent().unwrap_or(Path::new("")));
     // On failure the temporary file is dropped, which deletes it.
     tmp.persist(path).map_err(|e| e.error)?;
     // Make the rename itself durable. The new file is already in place, so a
@@ -236,9 +249,47 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
     Ok(())
 }
 
+/// An output written in full to a hidden temporary file beside its
+/// destination and flushed to disk, but not yet in place: staging every
+/// output of a level first means that a full disk or a failed write
+/// replaces none of them. Dropped without [`StagedFile::commit`], the
+/// temporary file is deleted.
+#[derive(Debug)]
+pub struct StagedFile {
+    tmp: tempfile::NamedTempFile,
+    path: PathBuf,
+}
+
+impl StagedFile {
+    /// Writes `bytes` to a temporary file for `path`.
+    pub fn new(path: &Path, bytes: &[u8]) -> Result<StagedFile, OutputError> {
+        let tmp = stage_io(path, bytes).map_err(|e| named_error(path, e))?;
+        Ok(StagedFile {
+            tmp,
+            path: path.to_path_buf(),
+        })
+    }
+
+    /// The destination.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Renames the file into place (atomically replacing any earlier one).
+    pub fn commit(self) -> Result<PathBuf, OutputError> {
+        persist_io(self.tmp, &self.path).map_err(|e| named_error(&self.path, e))?;
+        Ok(self.path)
+    }
+}
+
 /// [`write_atomic`] with errors that name the path in plain words.
 pub fn write_file_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
-    write_atomic(path, bytes).map_err(|e| {
+    write_atomic(path, bytes).map_err(|e| named_error(path, e))
+}
+
+/// An I/O error writing `path`, in plain words.
+fn named_error(path: &Path, e: io::Error) -> OutputError {
+    {
         let dir = path.parent().unwrap_or(Path::new(""));
         match e.kind() {
             // The folder vanished or was never there: say so about the folder.
@@ -248,5 +299,5 @@ pub fn write_file_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
             },
             _ => OutputError::from_io(path, e),
         }
-    })
+    }
 }

@@ -24,7 +24,9 @@ use std::time::Instant;
 use ::image::DynamicImage;
 
 pub use self::exr::{encode_exr_rgb32f, read_lightmap_exr};
-pub use self::files::{OutputError, ensure_output_dir, write_atomic, write_file_atomic};
+pub use self::files::{
+    OutputError, StagedFile, ensure_output_dir, write_atomic, write_file_atomic,
+};
 pub use self::image::{
     RGBM_RANGE, encode_png, encode_png_rgba8, encode_png_rgba16, hdr_pixels, lightmap_image,
     lit_image, rgbm_decode, rgbm_encode, rgbm_image, srgb8, srgb16,
@@ -144,6 +146,26 @@ pub fn write_files(dir: &Path, name: &str, files: &[Encoded]) -> Result<Vec<Path
         written.push(path);
     }
     Ok(written)
+}
+
+/// Stages `files` of level `name` in `dir` (each in full in a temporary file
+/// beside it, see [`StagedFile`]) without replacing anything yet: on an
+/// error nothing of `dir` has changed.
+pub fn stage_files(
+    dir: &Path,
+    name: &str,
+    files: &[Encoded],
+) -> Result<Vec<StagedFile>, OutputError> {
+    check_output_dir(dir)?;
+    files
+        .iter()
+        .map(|f| StagedFile::new(&dir.join(f.kind.file_name(name)), &f.bytes))
+        .collect()
+}
+
+/// Puts staged files in place, in order.
+pub fn commit_files(staged: Vec<StagedFile>) -> Result<Vec<PathBuf>, OutputError> {
+    staged.into_iter().map(StagedFile::commit).collect()
 }
 
 /// The report file of level `name`, in the encoding flatbake writes it in
