@@ -691,3 +691,21 @@ fn a_png_that_panics_the_decoder_fails_alone() {
         other => panic!("exit {other:?}: {}", stderr(&o)),
     }
 }
+
+/// A level symlink that points nowhere is named as a failure, not dropped.
+#[cfg(unix)]
+#[test]
+fn a_dangling_level_symlink_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let levels = dir.path().join("levels");
+    std::fs::create_dir(&levels).unwrap();
+    paint(&levels, "good", ROOM, Some(PALETTE));
+    std::os::unix::fs::symlink(levels.join("gone.png"), levels.join("ghost.png")).unwrap();
+    let out = dir.path().join("out");
+    let o = flatbake_mixed(&[&"bake", &levels, &"-o", &out]);
+    assert_exit(&o, EXIT_FAILED);
+    assert_says(
+        &o,
+        &["ghost.png", "file not found", "1 level baked", "1 failed"],
+    );
+}

@@ -644,6 +644,10 @@ fn a_second_bake_into_a_held_folder_waits() {
     drop(lock);
     let o = child.wait_with_output().expect("flatbake ends");
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(stderr(&o).contains("is being written by another flatbake; waiting"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("is being written by another flatbake; waiting"),
+        "{}",
+        stderr(&o)
+    );
     assert!(out.join("room.lightmap.png").is_file());
 }

@@ -250,7 +250,10 @@ pub fn collect_levels(paths: &[PathBuf]) -> Vec<PathBuf> {
                 .map(|rd| {
                     rd.filter_map(Result::ok)
                         .map(|e| e.path())
-                        .filter(|f| f.is_file() && is_level_file(f))
+                        // A symlink that points nowhere is kept: loading
+                        // it fails with its name, instead of it vanishing
+                        // from the batch without a word.
+                        .filter(|f| (f.is_file() || f.is_symlink()) && is_level_file(f))
                         .collect()
                 })
                 .unwrap_or_default();
