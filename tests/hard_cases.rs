@@ -1035,3 +1035,48 @@ fn a_singular_system_is_an_error_not_zeros() {
         Err(other) => panic!("{other}"),
     }
 }
+
+/// The last-resort clamp never fires on a valid level: the reported level
+/// (a tiny falloff at draft, where the fast gather's sums of moments nearly
+/// cancel) at every preset, with and without its falloff, and a level of
+/// 25 % random one-pixel walls.
+#[test]
+fn the_last_resort_clamp_does_not_fire_on_valid_levels() {
+    use flatbake_core::level::palette::Palette;
+    use flatbake_core::level::{LoadLimits, load_level};
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fixtures/input/clamp_draft_falloff.png");
+    let palette = Palette::resolve_for_level(&path, None).expect("palette");
+    let reported = load_level(&path, &palette, LoadLimits::default()).expect("level");
+    // 25 % random one-pixel walls in a closed room with a light strip.
+    let mut s = 7u64;
+    let rows: Vec<String> = (0..96)
+        .map(|y| {
+            (0..96)
+                .map(|x| {
+                    s ^= s << 13;
+                    s ^= s >> 7;
+                    s ^= s << 17;
+                    if y == 0 && (30..60).contains(&x) {
+                        '*'
+                    } else if x == 0 || y == 0 || x == 95 || y == 95 || s.is_multiple_of(4) {
+                        '#'
+                    } else {
+                        '.'
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    let noise = ascii(&refs(&rows), &[('#', wall(0.6)), ('*', light(2.0, 0.0))]);
+    for q in [Quality::Draft, Quality::Normal, Quality::High] {
+        for falloff in [None, Some(0.1), Some(8.0)] {
+            for level in [&reported, &noise] {
+                let mut s = settings(q);
+                s.falloff = falloff;
+                let b = bake(level, &s, &quiet).unwrap_or_else(|e| panic!("{e}"));
+                check(level, &b, s.knobs.tolerance.max(1e-5));
+            }
+        }
+    }
+}
