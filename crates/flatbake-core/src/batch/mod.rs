@@ -445,36 +445,19 @@ pub fn bake_one(path: &Path, opts: &BatchOptions, observer: &dyn Observer) -> Re
             });
         }
     }
-    // The report lists every file, itself after the images.
-    report.outputs = images
-        .iter()
-        .map(|f| &f.kind)
-        .chain([&OutputKind::Report])
-        .chain(extra.iter().map(|f| &f.kind))
-        .map(|k| k.file_name(&level.name))
-        .collect();
+    // One transaction: every output staged first (a full disk replaces
+    // nothing), the stamp removed before the renames, the new stamp last.
+    // Whatever fails in between leaves no stamp: not up to date.
     let dir = &opts.out_dir;
-    // One transaction. Every output is staged in full first, so a full disk
-    // or a failed write replaces nothing; then the stamp goes, the outputs
-    // are renamed into place (images, report, the rest), and the new stamp
-    // comes last. Whatever fails in between leaves no stamp: not up to date.
-    let mut staged = output::stage_files(dir, &level.name, &images)?;
-    staged.extend(output::stage_files(dir, &level.name, &extra)?);
-    let seconds = start.elapsed().as_secs_f64();
-    report.timings.write = seconds;
-    report.timings.total += seconds;
-    let json = output::encode_report(dir, &level.name, &report)?;
-    let report_file = output::stage_files(dir, &level.name, std::slice::from_ref(&json))?;
-    staged.splice(images.len()..images.len(), report_file);
-    stamp::invalidate(&recipe, dir)?;
-    output::commit_files(staged)?;
-    let written: Vec<(String, String)> = images
-        .iter()
-        .chain([&json])
-        .chain(&extra)
-        .map(|f| (f.kind.file_name(&level.name), stamp::content_hash(&f.bytes)))
-        .collect();
-    debug_assert!(written.iter().map(|(n, _)| n).eq(report.outputs.iter()));
+    let written = output::write_level_files(
+        dir,
+        &level.name,
+        &images,
+        &extra,
+        &mut report,
+        start,
+        || stamp::invalidate(&recipe, dir),
+    )?;
     stamp::write(&recipe, dir, &inputs, &written)?;
     Ok(report)
 }

@@ -147,19 +147,15 @@ pub fn relight(cache_path: &Path, opts: &RelightOptions) -> Result<Report> {
     } else {
         Vec::new()
     };
-    report.outputs = images
-        .iter()
-        .map(|f| &f.kind)
-        .chain([&OutputKind::Report])
-        .chain(layers.iter().map(|f| &f.kind))
-        .map(|k| k.file_name(&level.name))
-        .collect();
-    output::write_files(&opts.out_dir, &level.name, &images)?;
-    output::write_files(&opts.out_dir, &level.name, &layers)?;
-    report.timings.write = write.elapsed().as_secs_f64();
-    report.timings.total += report.timings.write;
-    let json = output::encode_report(&opts.out_dir, &level.name, &report)?;
-    output::write_files(&opts.out_dir, &level.name, &[json])?;
+    output::write_level_files(
+        &opts.out_dir,
+        &level.name,
+        &images,
+        &layers,
+        &mut report,
+        write,
+        || Ok(()),
+    )?;
     Ok(report)
 }
 

@@ -54,11 +54,6 @@ pub struct Stamp {
     pub hashes: Vec<String>,
 }
 
-/// The blake3 of an output's bytes, as the stamp records it.
-pub fn content_hash(bytes: &[u8]) -> String {
-    blake3::hash(bytes).to_hex().to_string()
-}
-
 /// Hashes what the outputs of `recipe`'s level depend on.
 pub fn inputs(recipe: &Recipe) -> Result<Inputs> {
     let read = |path: &Path| {
@@ -124,7 +119,8 @@ pub fn up_to_date(recipe: &Recipe, out_dir: &Path) -> bool {
         && !stamp.outputs.is_empty()
         && stamp.outputs.len() == stamp.hashes.len()
         && stamp.outputs.iter().zip(&stamp.hashes).all(|(o, h)| {
-            std::fs::read(out_dir.join(o)).is_ok_and(|bytes| content_hash(&bytes) == *h)
+            std::fs::read(out_dir.join(o))
+                .is_ok_and(|bytes| crate::output::content_hash(&bytes) == *h)
         })
 }
 

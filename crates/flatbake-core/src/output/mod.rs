@@ -181,8 +181,8 @@ pub fn encode_report(dir: &Path, name: &str, report: &Report) -> Result<Encoded,
 }
 
 /// Writes the image outputs of one level into `dir` (which must exist, see
-/// [`ensure_output_dir`]), and last `NAME.report.json`. Returns the paths
-/// written, in that order.
+/// [`ensure_output_dir`]), and `NAME.report.json` after them; returns the
+/// paths written, in that order (see [`write_level_files`]).
 ///
 /// The report written is a copy of `report` with `outputs` set to the file
 /// names written (report included, relative to `dir`), `timings.write` set
@@ -190,8 +190,7 @@ pub fn encode_report(dir: &Path, name: &str, report: &Report) -> Result<Encoded,
 /// added to `timings.total`.
 ///
 /// Nothing is written when the inputs are inconsistent or an image fails to
-/// encode. Each file is replaced atomically; if a later file fails, the
-/// earlier ones of this call are already new and the report is not written.
+/// encode or to be written.
 pub fn write_level_outputs(
     dir: &Path,
     level: &Level,
@@ -202,18 +201,59 @@ pub fn write_level_outputs(
     let start = Instant::now();
     check_output_dir(dir)?;
     let files = encode_images(level, map, opts)?;
-    let mut written = write_files(dir, &level.name, &files)?;
     let mut report = report.clone();
-    report.outputs = files
+    let written = write_level_files(dir, &level.name, &files, &[], &mut report, start, || Ok(()))?;
+    Ok(written.into_iter().map(|(n, _)| dir.join(n)).collect())
+}
+
+/// Writes one level's outputs into `dir` as one transaction, and returns
+/// each file's name and content hash ([`content_hash`]) in the order they
+/// are listed and put in place: `images`, then `NAME.report.json`, then
+/// `extra` (layers, cache).
+///
+/// `report.outputs` is set to that list, `report.timings.write` to the
+/// seconds since `start` (encoding and staging), and that time is added to
+/// `report.timings.total`, before the report is encoded. Every file is
+/// staged in full ([`StagedFile`]) before any is replaced, so a full disk or
+/// a failed write changes nothing in `dir`; `before_commit` runs between
+/// the staging and the renames (the batch removes the level's stamp there).
+pub fn write_level_files(
+    dir: &Path,
+    name: &str,
+    images: &[Encoded],
+    extra: &[Encoded],
+    report: &mut Report,
+    start: Instant,
+    before_commit: impl FnOnce() -> Result<(), OutputError>,
+) -> Result<Vec<(String, String)>, OutputError> {
+    report.outputs = images
         .iter()
         .map(|f| &f.kind)
         .chain([&OutputKind::Report])
-        .map(|k| k.file_name(&level.name))
+        .chain(extra.iter().map(|f| &f.kind))
+        .map(|k| k.file_name(name))
         .collect();
+    let mut staged = stage_files(dir, name, images)?;
+    staged.extend(stage_files(dir, name, extra)?);
     let seconds = start.elapsed().as_secs_f64();
     report.timings.write = seconds;
     report.timings.total += seconds;
-    let json = encode_report(dir, &level.name, &report)?;
-    written.extend(write_files(dir, &level.name, &[json])?);
-    Ok(written)
+    let json = encode_report(dir, name, report)?;
+    staged.splice(
+        images.len()..images.len(),
+        stage_files(dir, name, std::slice::from_ref(&json))?,
+    );
+    before_commit()?;
+    commit_files(staged)?;
+    Ok(images
+        .iter()
+        .chain([&json])
+        .chain(extra)
+        .map(|f| (f.kind.file_name(name), content_hash(&f.bytes)))
+        .collect())
+}
+
+/// The blake3 of an output's bytes, hex: what a stamp records of it.
+pub fn content_hash(bytes: &[u8]) -> String {
+    blake3::hash(bytes).to_hex().to_string()
 }
