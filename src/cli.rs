@@ -162,12 +162,46 @@ pub struct BakeArgs {
     /// Refuse images with more pixels than this (checked before decoding).
     #[arg(long, value_name = "N", default_value_t = LoadLimits::default().max_pixels)]
     pub max_pixels: u64,
+    /// Refuse a level whose estimated peak memory is above SIZE (e.g. 16G, 512M), checked after
+    /// tracing its walls; `auto`: the memory the machine has free; `none`: no limit.
+    #[arg(long, value_name = "SIZE", default_value = "auto", value_parser = parse_memory)]
+    pub max_memory: MemoryLimit,
     /// Print only errors.
     #[arg(long)]
     pub quiet: bool,
     /// Bake levels even when their outputs are up to date.
     #[arg(long)]
     pub force: bool,
+}
+
+/// `--max-memory`: how much memory one level's bake may use.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MemoryLimit {
+    /// What the machine has free when the batch starts.
+    Auto,
+    /// No limit.
+    Unlimited,
+    /// This many bytes.
+    Bytes(u64),
+}
+
+impl MemoryLimit {
+    /// The limit in bytes, if any (`Auto` reads the free memory now).
+    pub fn bytes(self) -> Option<u64> {
+        match self {
+            MemoryLimit::Auto => flatbake_core::bake::memory::available(),
+            MemoryLimit::Unlimited => None,
+            MemoryLimit::Bytes(b) => Some(b),
+        }
+    }
+}
+
+fn parse_memory(s: &str) -> Result<MemoryLimit, String> {
+    match s.to_ascii_lowercase().as_str() {
+        "auto" => Ok(MemoryLimit::Auto),
+        "none" | "off" | "unlimited" => Ok(MemoryLimit::Unlimited),
+        _ => flatbake_core::bake::memory::parse_size(s).map(MemoryLimit::Bytes),
+    }
 }
 
 fn parse_depth(s: &str) -> Result<u8, String> {
@@ -365,6 +399,7 @@ pub fn batch_options(a: &BakeArgs) -> Result<BatchOptions, String> {
         layers: o.layers,
         cache: o.cache,
         force: a.force,
+        max_memory: a.max_memory.bytes(),
     })
 }
 
@@ -462,6 +497,7 @@ fn watch(a: &WatchArgs) -> u8 {
         gather: GatherArg::Fast,
         bounces: None,
         max_pixels: LoadLimits::default().max_pixels,
+        max_memory: MemoryLimit::Auto,
         quiet: false,
         force: false,
     };

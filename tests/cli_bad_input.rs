@@ -709,3 +709,80 @@ fn a_dangling_level_symlink_is_named() {
         &["ghost.png", "file not found", "1 level baked", "1 failed"],
     );
 }
+
+/// A field of isolated one-pixel pillars, `n` x `n`, lit at a few points:
+/// every pillar's four edges see most of the others, so its form factors
+/// grow with the square of the pillar count.
+fn pillar_field(n: usize) -> Vec<String> {
+    (0..n)
+        .map(|y| {
+            (0..n)
+                .map(|x| match (x % 2, y % 2) {
+                    _ if x % 40 == 20 && y % 40 == 20 => 'L',
+                    (1, 1) => '#',
+                    _ => '.',
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Regression: a 640x640 level of isolated one-pixel pillars (~400,000
+/// edges) grew to the machine's whole memory and was killed with the batch.
+/// A level whose estimated peak memory is above `--max-memory` is refused
+/// after tracing, naming the estimate and the flag; the batch goes on, and
+/// the estimate is in every report.
+#[test]
+fn a_level_over_the_memory_limit_is_refused_with_its_estimate() {
+    let dir = tempfile::tempdir().unwrap();
+    let small = paint(dir.path(), "room", ROOM, Some(PALETTE));
+    let rows = pillar_field(240);
+    let field = paint(dir.path(), "pillars", &refs(&rows), Some(PALETTE));
+    let out = dir.path().join("out");
+    let o = flatbake_mixed(&[
+        &"bake",
+        &small,
+        &field,
+        &"-o",
+        &out,
+        &"--max-memory",
+        &"300M",
+    ]);
+    assert_exit(&o, EXIT_FAILED);
+    assert_says(
+        &o,
+        &[
+            "pillars.png: needs an estimated",
+            "GB of memory at its peak",
+            "more than the 300 MB allowed",
+            "raise the limit with --max-memory",
+        ],
+    );
+    assert!(!out.join("pillars.lightmap.png").exists());
+    assert!(out.join("room.lightmap.png").exists(), "the batch went on");
+    let estimate = report(&out, "room")["counts"]["memory_estimate"]
+        .as_u64()
+        .expect("the report records the estimate");
+    assert!(estimate > 0 && estimate < 300_000_000, "{estimate}");
+
+    // The flag's suggested value is above the estimate, in whole gigabytes.
+    let err = stderr(&o);
+    let suggested = err
+        .split("--max-memory ")
+        .nth(1)
+        .and_then(|s| s.split_whitespace().next())
+        .expect("a suggested --max-memory value");
+    assert!(suggested.ends_with('G'), "{suggested}");
+
+    for (value, words) in [
+        ("12X", "unknown unit"),
+        ("-1G", "not a usable memory size"),
+        ("lots", "not a memory size"),
+        ("0", "not a usable memory size"),
+    ] {
+        let arg = format!("--max-memory={value}");
+        let o = flatbake_mixed(&[&"bake", &small, &"-o", &out, &arg]);
+        assert_exit(&o, EXIT_USAGE);
+        assert_says(&o, &[words]);
+    }
+}

@@ -651,3 +651,77 @@ fn a_second_bake_into_a_held_folder_waits() {
     );
     assert!(out.join("room.lightmap.png").is_file());
 }
+
+/// The memory estimate's count of form-factor entries is the exact count
+/// when every patch is sampled, and close to it from a sample of 64 patches
+/// on a level of scattered obstacles; the falloff's reach is applied as the
+/// form factors apply it.
+#[test]
+fn the_memory_estimate_counts_form_factor_entries_from_a_sample() {
+    use flatbake_core::transport::{self, kernel::Reach};
+    for (falloff, tolerance) in [(None, 0.25), (Some(6.0), 0.25)] {
+        let (level, _) = flatbake_synth::bench_obstacles(192, 20, 4, 3)
+            .level()
+            .expect("the benchmark's palette parses");
+        let knobs = Quality::Normal.knobs();
+        let scene = bake::Scene::new(&level, knobs.patch_len);
+        let falloff = falloff.map(transport::kernel::Falloff::new);
+        let lens: Vec<f64> = scene.geometry.edges.iter().map(|e| e.len()).collect();
+        let reach = Reach::new(
+            &lens,
+            &vec![1.0; lens.len()],
+            falloff,
+            0.5,
+            knobs.reach_bound,
+        );
+        let (_, points, _) =
+            transport::form_factors(&scene.geometry, &scene.patches, knobs.quad, falloff, &reach);
+        let exact = points.col.len() as u64;
+        let n = scene.patch_count();
+        let every = transport::estimate_point_entries(
+            &scene.geometry,
+            &scene.patches,
+            knobs.quad,
+            falloff,
+            &reach,
+            n,
+        );
+        assert_eq!(every, exact, "every patch sampled: the exact count");
+        let sampled = transport::estimate_point_entries(
+            &scene.geometry,
+            &scene.patches,
+            knobs.quad,
+            falloff,
+            &reach,
+            64,
+        );
+        let ratio = sampled as f64 / exact as f64;
+        assert!(
+            (1.0 - tolerance..=1.0 + tolerance).contains(&ratio),
+            "{n} patches, 64 sampled: {sampled} vs {exact} ({ratio:.3})"
+        );
+    }
+}
+
+/// A bake whose estimate is above `Settings::max_memory` is refused before
+/// its form factors, with the estimate; at the estimate itself it bakes,
+/// and the report records the same estimate.
+#[test]
+fn max_memory_refuses_above_the_estimate_and_bakes_at_it() {
+    let (level, _) = flatbake_synth::cornell(48).level().expect("palette");
+    let mut settings = Settings::new(Quality::Draft);
+    let baked = bake::bake(&level, &settings, &|_| {}).expect("no limit: bakes");
+    let estimate = baked.report.counts.memory_estimate;
+    assert!(estimate > 0);
+    settings.max_memory = Some(estimate);
+    let again = bake::bake(&level, &settings, &|_| {}).expect("at the estimate: bakes");
+    assert_eq!(again.report.counts.memory_estimate, estimate);
+    settings.max_memory = Some(estimate - 1);
+    match bake::bake(&level, &settings, &|_| {}) {
+        Err(bake::BakeError::TooMuchMemory { estimate: e, limit }) => {
+            assert_eq!((e.bytes, limit), (estimate, estimate - 1));
+        }
+        Err(other) => panic!("refused for another reason: {other}"),
+        Ok(_) => panic!("baked above its limit"),
+    }
+}

@@ -26,6 +26,7 @@
 pub mod factors;
 pub mod light;
 pub mod lightmap;
+pub mod memory;
 pub mod plan;
 pub mod radiosity;
 pub mod report;
@@ -37,6 +38,7 @@ use std::time::Instant;
 pub use factors::Transport;
 pub use light::Gathered;
 pub use lightmap::Lightmap;
+pub use memory::MemoryEstimate;
 pub use plan::{ChannelPlan, Plan, ResponsePlan, plan_channels};
 pub use radiosity::{Solved, energy_balance};
 pub use report::{Counts, Energy, Report, Skip, Timings};
@@ -102,6 +104,10 @@ pub struct Settings {
     /// cull no faint pairs. The full computation that every skip is tested
     /// against; results agree with the default up to each skip's bound.
     pub exhaustive: bool,
+    /// Refuse the bake, before its form factors, when its estimated peak
+    /// memory ([`MemoryEstimate`]) is above this many bytes. Default: no
+    /// limit (the command line passes the memory the machine has free).
+    pub max_memory: Option<u64>,
 }
 
 impl Settings {
@@ -117,6 +123,7 @@ impl Settings {
             naive_samples: 8,
             responses: false,
             exhaustive: false,
+            max_memory: None,
         }
     }
 }
@@ -136,6 +143,21 @@ pub enum BakeError {
     /// The solver could not find the radiosity.
     #[error(transparent)]
     Solve(#[from] SolveError),
+    /// The bake would need more memory than it may use.
+    #[error(
+        "needs an estimated {} of memory at its peak ({} pixels, ~{:.1e} form-factor entries), more than the {} allowed (--max-memory; by default the memory this machine has free); bake it on a machine with more memory, or raise the limit with --max-memory {} if that much is free",
+        memory::human_bytes(.estimate.bytes),
+        .estimate.pixels,
+        .estimate.point_entries as f64,
+        memory::human_bytes(*.limit),
+        memory::flag_value_for(.estimate.bytes)
+    )]
+    TooMuchMemory {
+        /// The estimate.
+        estimate: MemoryEstimate,
+        /// The limit it is over, in bytes.
+        limit: u64,
+    },
     /// A stage found an inconsistency between the stages before it: a bug,
     /// reported instead of a panic.
     #[error("internal error: {0} (please report this level)")]
@@ -291,6 +313,15 @@ pub fn bake(
     timed(&mut timings.geometry, t);
 
     let mut plan = Plan::new(&ctx, &scene, &mut log);
+    let memory = MemoryEstimate::new(&ctx, &scene, &plan);
+    if let Some(limit) = settings.max_memory
+        && memory.bytes > limit
+    {
+        return Err(BakeError::TooMuchMemory {
+            estimate: memory,
+            limit,
+        });
+    }
 
     let transport = if plan.needs_form_factors() {
         progress("form factors");
@@ -322,6 +353,7 @@ pub fn bake(
         form_factor_entries: transport.entries(),
         unreached_pixels: gathered.unreached,
         culled_pairs: transport.culled_pairs + gathered.culled_pairs,
+        memory_estimate: memory.bytes,
     };
     let report = Report::new(&ctx, counts, timings, &solved, log);
     Ok(Baked {

@@ -41,6 +41,10 @@ pub struct Counts {
     /// Edge-pixel pairs skipped because they lie beyond the falloff reach.
     #[serde(default)]
     pub culled_pairs: u64,
+    /// The bake's estimated peak memory in bytes, checked against
+    /// `--max-memory` before the form factors.
+    #[serde(default)]
+    pub memory_estimate: u64,
 }
 
 /// Light power per unit time, summed over the three channels. `emitted`

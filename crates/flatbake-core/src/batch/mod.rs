@@ -58,6 +58,10 @@ pub struct BatchOptions {
     pub cache: bool,
     /// Bake even levels whose outputs are up to date.
     pub force: bool,
+    /// Refuse a level whose estimated peak memory is above this many bytes
+    /// (see [`bake::MemoryEstimate`]); `None`: no limit. Changes no output
+    /// byte, so it is not part of the stamp.
+    pub max_memory: Option<u64>,
 }
 
 impl BatchOptions {
@@ -103,6 +107,7 @@ impl BatchOptions {
         settings.kernel = self.kernel;
         settings.gather = self.gather;
         settings.responses = self.layers || self.cache;
+        settings.max_memory = self.max_memory;
         settings
     }
 
@@ -135,6 +140,7 @@ impl Default for BatchOptions {
             layers: false,
             cache: false,
             force: false,
+            max_memory: None,
         }
     }
 }

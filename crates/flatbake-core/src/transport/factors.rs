@@ -242,6 +242,74 @@ pub fn wanted_reach(reach: &Reach, lit: impl Fn(usize) -> bool) -> Vec<f64> {
         .collect()
 }
 
+/// The quadrature points of patches `which` at the Gauss-Legendre abscissae
+/// `xs` (on [0, 1]), each with the free pixel in front of it.
+fn query_points(
+    geometry: &Geometry,
+    patches: &Patches,
+    xs: &[f64],
+    which: impl Iterator<Item = usize>,
+) -> (Vec<[f64; 2]>, Vec<[i32; 2]>) {
+    let edges = &geometry.edges;
+    let (mut pos, mut pixel) = (Vec::new(), Vec::new());
+    for p in which {
+        let e = &edges[patches.edge[p] as usize];
+        let (s0, s1) = patches.bounds(edges, p);
+        for &x in xs {
+            let s = s0 + x * (s1 - s0);
+            pos.push(e.point_at(s));
+            pixel.push(e.free_pixel_at(s.floor() as i32));
+        }
+    }
+    (pos, pixel)
+}
+
+/// An estimate of how many entries [`form_factors`] would store in its
+/// per-point rows (one per quadrature point and patch it sees), from the
+/// exact visibility of at most `samples` patches spread evenly over the
+/// patch list: their mean times the number of patches. Counts only, so it
+/// costs a small part of the form factors themselves; it lets a bake that
+/// would need more memory than the machine has be refused before it starts.
+pub fn estimate_point_entries(
+    geometry: &Geometry,
+    patches: &Patches,
+    quad: usize,
+    falloff: Option<Falloff>,
+    reach: &Reach,
+    samples: usize,
+) -> u64 {
+    let n = patches.len();
+    if n == 0 || samples == 0 {
+        return 0;
+    }
+    let (xs, _) = gauss_legendre(quad);
+    let q = xs.len();
+    let k = samples.min(n);
+    // Patch i * n / k for i < k: evenly spread, deterministic.
+    let picked: Vec<usize> = (0..k).map(|i| i * n / k).collect();
+    let (pos, pixel) = query_points(geometry, patches, xs, picked.iter().copied());
+    let edges = &geometry.edges;
+    let normal = |i: usize| edges[patches.edge[picked[i / q]] as usize].normal;
+    let view = |i: usize| View::Half(normal(i));
+    let reach2 = wanted_reach(reach, |_| true);
+    let counted = std::sync::atomic::AtomicU64::new(0);
+    for_each_visibility(
+        geometry,
+        &pos,
+        &pixel,
+        &view,
+        reach.max,
+        Some(&reach2),
+        &|i, spans| {
+            let mut out = Vec::new();
+            point_factors(edges, patches, pos[i], normal(i), spans, falloff, &mut out);
+            counted.fetch_add(out.len() as u64, std::sync::atomic::Ordering::Relaxed);
+        },
+    );
+    let counted = counted.into_inner() as f64;
+    (counted * n as f64 / k as f64).ceil() as u64
+}
+
 /// Computes the form factors with `quad` Gauss-Legendre points per patch,
 /// and the per-point rows behind them.
 pub fn form_factors(
@@ -255,18 +323,7 @@ pub fn form_factors(
     let (xs, ws) = gauss_legendre(quad);
     let q = xs.len();
     let n = patches.len();
-    // Query points: q per patch, each with the free pixel in front of it.
-    let mut pos = Vec::with_capacity(n * q);
-    let mut pixel = Vec::with_capacity(n * q);
-    for p in 0..n {
-        let e = &edges[patches.edge[p] as usize];
-        let (s0, s1) = patches.bounds(edges, p);
-        for &x in xs {
-            let s = s0 + x * (s1 - s0);
-            pos.push(e.point_at(s));
-            pixel.push(e.free_pixel_at(s.floor() as i32));
-        }
-    }
+    let (pos, pixel) = query_points(geometry, patches, xs, 0..n);
     let results: Vec<std::sync::Mutex<Vec<(u32, f64)>>> =
         (0..n * q).map(|_| Default::default()).collect();
     let view = |i: usize| View::Half(edges[patches.edge[i / q] as usize].normal);

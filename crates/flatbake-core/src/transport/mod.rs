@@ -24,5 +24,7 @@ pub mod paper;
 mod patches;
 pub mod solve;
 
-pub use factors::{FormFactors, PointRows, form_factors, point_factors, wanted_reach};
+pub use factors::{
+    FormFactors, PointRows, estimate_point_entries, form_factors, point_factors, wanted_reach,
+};
 pub use patches::{Patches, axis_vec, normal_vec};

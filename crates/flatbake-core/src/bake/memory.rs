@@ -1,0 +1,208 @@
+//! Between planning and the form factors: an estimate of the bake's peak
+//! memory, so that a level that would exhaust the machine is refused up
+//! front with the estimate and the flag that overrides it, instead of
+//! growing until the system kills the whole batch.
+//!
+//! What grows with a level (docs/robustness.md#memory):
+//! - per pixel: the level, the lightmap and the gather's per-pixel arrays,
+//!   measured at 75 to 110 bytes per pixel on open levels (a few large
+//!   rooms, where the gather arrays dominate); counted as [`PER_PIXEL`];
+//! - per patch: materials, radiosity, solver vectors, slopes and the patch
+//!   tree; counted as [`PER_PATCH`];
+//! - per visible pair of a quadrature point and a patch: the per-point rows
+//!   of the form factors, their merged patch rows and the matrix built from
+//!   them, alive through the gather (measured at up to 28 bytes per entry);
+//!   counted as [`PER_POINT_ENTRY`] and
+//!   estimated from the exact visibility of a sample of patches
+//!   ([`transport::estimate_point_entries`]);
+//! - the dense fallback solve of systems up to the solver's fallback size,
+//!   8 bytes per matrix entry;
+//! - per-emitter responses (light layers, relight caches): 12 bytes per
+//!   pixel per emitter material and reflectance class.
+
+use super::{Ctx, Plan, Scene};
+use crate::gather::Kernel;
+use crate::transport::kernel::Reach;
+use crate::transport::{self, solve::SolveSettings};
+
+/// Bytes per level pixel outside the form factors (see the module docs).
+pub const PER_PIXEL: u64 = 120;
+/// Bytes per patch outside the form factors (see the module docs).
+pub const PER_PATCH: u64 = 200;
+/// Bytes per stored entry of the per-point form-factor rows, with the
+/// patch rows and matrix built from them and the slack of growing vectors.
+pub const PER_POINT_ENTRY: u64 = 32;
+/// What every bake needs whatever its size: threads, tables, buffers.
+pub const BASE: u64 = 64 << 20;
+/// Patches whose visibility is sampled for the estimate.
+pub const SAMPLED_PATCHES: usize = 256;
+
+/// A bake's estimated peak memory, and what it is made of.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MemoryEstimate {
+    /// The estimate, in bytes.
+    pub bytes: u64,
+    /// Level pixels.
+    pub pixels: u64,
+    /// Estimated entries of the per-point form-factor rows (0 when no
+    /// bounce is solved).
+    pub point_entries: u64,
+}
+
+impl MemoryEstimate {
+    /// The estimate for baking `scene` as planned.
+    pub fn new(ctx: &Ctx, scene: &Scene, plan: &Plan) -> MemoryEstimate {
+        let level = ctx.level;
+        let pixels = (level.width as u64) * (level.height as u64);
+        let n = scene.patch_count() as u64;
+        let point_entries = if plan.needs_form_factors() {
+            match ctx.settings.kernel {
+                Kernel::Flatland => {
+                    let edges = &scene.geometry.edges;
+                    let lens: Vec<f64> = edges.iter().map(|e| e.len()).collect();
+                    let reach = Reach::new(
+                        &lens,
+                        &vec![1.0; edges.len()],
+                        ctx.falloff,
+                        0.5,
+                        ctx.reach_bound,
+                    );
+                    transport::estimate_point_entries(
+                        &scene.geometry,
+                        &scene.patches,
+                        ctx.settings.knobs.quad,
+                        ctx.falloff,
+                        &reach,
+                        SAMPLED_PATCHES,
+                    )
+                }
+                // One row entry per visible patch pair: at most n^2.
+                Kernel::Paper => n.saturating_mul(n),
+            }
+        } else {
+            0
+        };
+        let dense =
+            if plan.needs_form_factors() && n as usize <= SolveSettings::default().fallback_max {
+                n * n * 8
+            } else {
+                0
+            };
+        let responses = plan.responses.as_ref().map_or(0, |rp| {
+            (rp.emitters.len() as u64) * (rp.rho_reps.len() as u64) * pixels * 12
+        });
+        let bytes = BASE
+            .saturating_add(pixels.saturating_mul(PER_PIXEL))
+            .saturating_add(n.saturating_mul(PER_PATCH))
+            .saturating_add(point_entries.saturating_mul(PER_POINT_ENTRY))
+            .saturating_add(dense)
+            .saturating_add(responses);
+        MemoryEstimate {
+            bytes,
+            pixels,
+            point_entries,
+        }
+    }
+}
+
+/// `bytes` for people: "812 MB", "24.1 GB" (powers of 1000, as `--max-memory`
+/// reads them).
+pub fn human_bytes(bytes: u64) -> String {
+    let b = bytes as f64;
+    if b >= 1e9 {
+        format!("{:.1} GB", b / 1e9)
+    } else if b >= 1e6 {
+        format!("{:.0} MB", b / 1e6)
+    } else {
+        format!("{:.0} kB", b / 1e3)
+    }
+}
+
+/// The `--max-memory` value that would admit `bytes`: whole gigabytes,
+/// rounded up ("25G").
+pub fn flag_value_for(bytes: u64) -> String {
+    format!("{}G", bytes.div_ceil(1_000_000_000).max(1))
+}
+
+/// The memory this machine has free for a bake: `MemAvailable` of
+/// `/proc/meminfo` (Linux), or `None` where that cannot be read.
+pub fn available() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    parse_meminfo_available(&info)
+}
+
+/// `MemAvailable` of a `/proc/meminfo` text, in bytes.
+fn parse_meminfo_available(info: &str) -> Option<u64> {
+    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    kb.checked_mul(1024)
+}
+
+/// Reads a memory size as `--max-memory` spells it: bytes, or a number with
+/// `K`, `M`, `G` or `T` (powers of 1000) or `KiB`, `MiB`, `GiB`, `TiB`
+/// (powers of 1024), with an optional `B`: "24G", "1.5GB", "512MiB".
+pub fn parse_size(s: &str) -> Result<u64, String> {
+    let t = s.trim();
+    let split = t
+        .find(|c: char| !(c.is_ascii_digit() || c == '.' || c == '-'))
+        .unwrap_or(t.len());
+    let (num, unit) = t.split_at(split);
+    let not_a_size = || format!("`{s}` is not a memory size (e.g. 16G, 512M, 2000000000)");
+    let x: f64 = num.parse().map_err(|_| not_a_size())?;
+    let unit = unit.trim().to_ascii_lowercase();
+    let scale: f64 = match unit.trim_end_matches('b') {
+        "" => 1.0,
+        "k" => 1e3,
+        "m" => 1e6,
+        "g" => 1e9,
+        "t" => 1e12,
+        "ki" => 1024.0,
+        "mi" => 1024.0 * 1024.0,
+        "gi" => 1024.0 * 1024.0 * 1024.0,
+        "ti" => 1024.0 * 1024.0 * 1024.0 * 1024.0,
+        _ => {
+            return Err(format!(
+                "unknown unit in `{s}`: use a number of bytes or K, M, G, T (e.g. 16G)"
+            ));
+        }
+    };
+    let bytes = x * scale;
+    if !(bytes.is_finite() && bytes >= 1.0 && bytes < 1.8e19) {
+        return Err(format!(
+            "`{s}` is not a usable memory size: give at least 1 byte (e.g. 16G)"
+        ));
+    }
+    Ok(bytes as u64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes_parse_in_both_unit_systems() {
+        assert_eq!(parse_size("24G"), Ok(24_000_000_000));
+        assert_eq!(parse_size("1.5GB"), Ok(1_500_000_000));
+        assert_eq!(parse_size("512MiB"), Ok(512 << 20));
+        assert_eq!(parse_size("2000"), Ok(2000));
+        assert!(parse_size("12X").unwrap_err().contains("unknown unit"));
+        assert!(parse_size("G").is_err());
+        assert!(parse_size("0").is_err());
+        assert!(parse_size("-1G").is_err());
+    }
+
+    #[test]
+    fn meminfo_available_is_read_in_bytes() {
+        let info = "MemTotal:       24000000 kB\nMemFree:  100 kB\nMemAvailable:   20000000 kB\n";
+        assert_eq!(parse_meminfo_available(info), Some(20_000_000 * 1024));
+        assert_eq!(parse_meminfo_available("MemTotal: 1 kB\n"), None);
+    }
+
+    #[test]
+    fn flag_values_round_up_to_whole_gigabytes() {
+        assert_eq!(flag_value_for(24_100_000_000), "25G");
+        assert_eq!(flag_value_for(1), "1G");
+        assert_eq!(human_bytes(24_100_000_000), "24.1 GB");
+        assert_eq!(human_bytes(812_000_000), "812 MB");
+    }
+}
