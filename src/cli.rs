@@ -160,7 +160,7 @@ pub struct BakeArgs {
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=MAX_BOUNCES as i64))]
     pub bounces: Option<u32>,
     /// Refuse images with more pixels than this (checked before decoding).
-    #[arg(long, value_name = "N", default_value_t = LoadLimits::default().max_pixels)]
+    #[arg(long, value_name = "N", default_value_t = LoadLimits::default().max_pixels, value_parser = clap::value_parser!(u64).range(1..))]
     pub max_pixels: u64,
     /// Refuse a level whose estimated peak memory is above SIZE (e.g. 16G, 512M), checked after
     /// tracing its walls; `auto`: the memory the machine has free; `none`: no limit.
