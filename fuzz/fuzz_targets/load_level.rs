@@ -29,6 +29,9 @@ fuzz_target!(|data: &[u8]| {
         },
         _ => Palette::builtin(),
     };
+    if has_partial_palette_entry(img) {
+        return;
+    }
     let path = dir.join("level.png");
     if std::fs::write(&path, img).is_err() {
         return;
@@ -46,3 +49,20 @@ fuzz_target!(|data: &[u8]| {
     assert_eq!(level.cells.len(), level.width * level.height);
     common::bake_and_check(&level, palette.settings.falloff, false);
 });
+
+/// A PNG whose `PLTE` length is not a multiple of 3 panics inside the `png`
+/// crate (a slice out of range while it expands the palette). The batch
+/// contains that panic as the level's failure (tested in
+/// `tests/mutation.rs`); a fuzz target cannot catch it, so such inputs are
+/// skipped to let the fuzzer look for other faults.
+fn has_partial_palette_entry(img: &[u8]) -> bool {
+    let mut i = 8;
+    while let Some(head) = img.get(i..i + 8) {
+        let len = u32::from_be_bytes([head[0], head[1], head[2], head[3]]) as usize;
+        if &head[4..8] == b"PLTE" && len % 3 != 0 {
+            return true;
+        }
+        i = i.saturating_add(12).saturating_add(len);
+    }
+    false
+}

@@ -248,13 +248,22 @@ impl Cache {
             return Err(damaged("checksum mismatch"));
         }
         let cache: Cache = postcard::from_bytes(payload).map_err(|e| damaged(&e.to_string()))?;
+        // The outputs are named after the level: a name with a path in it
+        // would write them outside the output folder.
+        if cache.level.contains(['/', '\\', '\0']) {
+            return Err(damaged("the level name is not a file name"));
+        }
         // Cross-checks, so that a well-formed but inconsistent file cannot
         // index out of bounds later.
         let Some(n) = cache.width.checked_mul(cache.height) else {
             return Err(damaged("inconsistent sizes"));
         };
+        if n == 0 {
+            return Err(damaged("the level has no pixels"));
+        }
         let r = &cache.responses;
         if cache.cells.len() != n
+            || cache.report.size != [cache.width, cache.height]
             || cache.albedo.len() != n
             || r.width != cache.width
             || r.height != cache.height
@@ -375,7 +384,10 @@ mod tests {
             materials: vec![wall, lamp],
             image_hash: String::new(),
             inputs_hash: String::new(),
-            report: Report::default(),
+            report: Report {
+                size: [2, 1],
+                ..Report::default()
+            },
             exposure: 1.0,
             depth16: false,
             rgbm: false,
@@ -414,6 +426,7 @@ mod tests {
             |c: &mut Cache| c.responses.rho_classes = 0,
             |c: &mut Cache| c.responses.emitters[0] = 7,
             |c: &mut Cache| c.cells[1] = 9,
+            |c: &mut Cache| c.report.size = [1, 2],
         ] {
             let mut c = tiny();
             broken(&mut c);
