@@ -13,12 +13,17 @@ use std::time::Duration;
 use clap::{Args, Parser, Subcommand};
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-use flatbake_core::bake::{GatherMethod, MAX_BOUNCES};
-use flatbake_core::batch::{self, BatchOptions, LevelOutcome, Observer};
+use flatbake_core::bake::GatherMethod;
+use flatbake_core::batch::{self, BatchOptions, LevelOutcome, Observer, Shard};
 use flatbake_core::gather::Kernel;
 use flatbake_core::level::LoadLimits;
 use flatbake_core::output::Depth;
 use flatbake_core::quality::Quality;
+
+use crate::flags::{
+    FalloffArg, parse_bounces, parse_debounce, parse_depth, parse_falloff, parse_jobs,
+    parse_max_pixels, parse_shard,
+};
 
 /// Exit status when every level baked.
 pub const EXIT_OK: u8 = 0;
@@ -36,7 +41,8 @@ pub const EXIT_USAGE: u8 = 2;
     name = "flatbake",
     version,
     about = "Bake 2D radiosity lightmaps for levels painted as bitmaps",
-    after_help = "Exit status: 0 all levels baked, 1 at least one level failed, 2 bad command line."
+    after_help = "Exit status: 0 all levels baked, 1 at least one level failed, 2 bad command line.\n\
+                  Examples for each subcommand: flatbake help SUBCOMMAND (e.g. flatbake help bake)."
 )]
 pub struct Cli {
     #[command(subcommand)]
@@ -46,14 +52,19 @@ pub struct Cli {
 #[derive(Subcommand, Debug)]
 pub enum Command {
     /// Bake levels (image files, or folders of them) into lightmaps.
+    #[command(after_help = crate::flags::BAKE_EXAMPLES)]
     Bake(BakeArgs),
     /// Show the built-in palette (or one palette file).
+    #[command(after_help = crate::flags::PALETTE_EXAMPLES)]
     Palette(PaletteArgs),
     /// Measure the price of accuracy: bake at every preset, time it, compare to reference.
+    #[command(after_help = crate::flags::SWEEP_EXAMPLES)]
     Sweep(SweepArgs),
     /// New lightmaps for new emission from a `bake --cache` file, without baking again.
+    #[command(after_help = crate::flags::RELIGHT_EXAMPLES)]
     Relight(RelightArgs),
     /// Bake every level in a folder, then re-bake each level whenever it or its palette is saved.
+    #[command(after_help = crate::flags::WATCH_EXAMPLES)]
     Watch(WatchArgs),
 }
 
@@ -88,8 +99,11 @@ pub struct WatchArgs {
     #[command(flatten)]
     pub output: OutputArgs,
     /// Quiet time after the last save before baking, in milliseconds.
-    #[arg(long, value_name = "MS", default_value_t = 300)]
+    #[arg(long, value_name = "MS", default_value_t = 300, value_parser = parse_debounce, allow_negative_numbers = true)]
     pub debounce: u64,
+    /// Print only errors.
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 /// What to bake and write: the flags `bake` and `watch` share.
@@ -101,9 +115,9 @@ pub struct OutputArgs {
     /// Accuracy preset: draft (preview while painting), normal (daily), high (shipping), reference (converged).
     #[arg(short, long, value_enum, default_value_t = QualityArg::Normal)]
     pub quality: QualityArg,
-    /// Light falloff: half-energy distance in pixels (overrides the palette).
-    #[arg(long, value_name = "PIXELS")]
-    pub falloff: Option<f64>,
+    /// Light falloff: half-energy distance in pixels, or none (overrides the palette).
+    #[arg(long, value_name = "PIXELS|none", value_parser = parse_falloff, allow_negative_numbers = true)]
+    pub falloff: Option<FalloffArg>,
     /// Palette for every level (instead of the lookup beside each level).
     #[arg(long, value_name = "FILE")]
     pub palette: Option<PathBuf>,
@@ -120,13 +134,13 @@ pub struct OutputArgs {
     #[arg(long)]
     pub cache: bool,
     /// Bits per channel of the PNG outputs.
-    #[arg(long, value_name = "BITS", default_value_t = 8, value_parser = parse_depth)]
+    #[arg(long, value_name = "BITS", default_value_t = 8, value_parser = parse_depth, allow_negative_numbers = true)]
     pub depth: u8,
     /// Multiply the PNG lightmaps by this (overrides the palette).
-    #[arg(long, value_name = "X")]
+    #[arg(long, value_name = "X", allow_negative_numbers = true)]
     pub exposure: Option<f64>,
     /// Worker threads, 1 to 512 (default: all cores).
-    #[arg(short, long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=MAX_JOBS))]
+    #[arg(short, long, value_name = "N", value_parser = parse_jobs, allow_negative_numbers = true)]
     pub jobs: Option<u16>,
 }
 
@@ -138,8 +152,11 @@ pub struct SweepArgs {
     /// Folder for accuracy.csv, accuracy.md and accuracy.png.
     #[arg(short = 'o', long = "out", default_value = "out/sweep")]
     pub out: PathBuf,
+    /// Print only errors.
+    #[arg(long)]
+    pub quiet: bool,
     /// Worker threads, 1 to 512 (default: all cores).
-    #[arg(short, long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=MAX_JOBS))]
+    #[arg(short, long, value_name = "N", value_parser = parse_jobs, allow_negative_numbers = true)]
     pub jobs: Option<u16>,
 }
 
@@ -157,10 +174,10 @@ pub struct BakeArgs {
     #[arg(long, value_enum, default_value_t = GatherArg::Fast)]
     pub gather: GatherArg,
     /// Truncate the bounce series: 0 = direct light only, at most 1000 (overrides the palette).
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=MAX_BOUNCES as i64))]
+    #[arg(long, value_name = "N", value_parser = parse_bounces, allow_negative_numbers = true)]
     pub bounces: Option<u32>,
     /// Refuse images with more pixels than this (checked before decoding).
-    #[arg(long, value_name = "N", default_value_t = LoadLimits::default().max_pixels)]
+    #[arg(long, value_name = "N", default_value_t = LoadLimits::default().max_pixels, value_parser = parse_max_pixels, allow_negative_numbers = true)]
     pub max_pixels: u64,
     /// Print only errors.
     #[arg(long)]
@@ -168,14 +185,9 @@ pub struct BakeArgs {
     /// Bake levels even when their outputs are up to date.
     #[arg(long)]
     pub force: bool,
-}
-
-fn parse_depth(s: &str) -> Result<u8, String> {
-    match s {
-        "8" => Ok(8),
-        "16" => Ok(16),
-        _ => Err(format!("the PNG depth is 8 or 16 bits, not {s}")),
-    }
+    /// Bake only shard K of N (1 <= K <= N): a fixed 1/N of the levels, chosen by a hash of each level's name.
+    #[arg(long, value_name = "K/N", value_parser = parse_shard)]
+    pub shard: Option<Shard>,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -271,7 +283,7 @@ pub fn run(cli: Cli) -> u8 {
 }
 
 fn sweep(a: &SweepArgs) -> u8 {
-    let tty = std::io::stderr().is_terminal();
+    let tty = !a.quiet && std::io::stderr().is_terminal();
     let spinner = if tty {
         ProgressBar::new_spinner()
     } else {
@@ -294,6 +306,7 @@ fn sweep(a: &SweepArgs) -> u8 {
     });
     spinner.finish_and_clear();
     match result {
+        Ok(Ok(_)) if a.quiet => EXIT_OK,
         Ok(Ok(all)) => {
             for (level, rows, check) in &all {
                 for r in rows {
@@ -327,13 +340,6 @@ fn sweep(a: &SweepArgs) -> u8 {
 /// Checks flag values that clap cannot, and builds the library options.
 pub fn batch_options(a: &BakeArgs) -> Result<BatchOptions, String> {
     let o = &a.output;
-    if let Some(f) = o.falloff
-        && !(f.is_finite() && f > 0.0)
-    {
-        return Err(format!(
-            "--falloff must be a positive number of pixels, not {f}"
-        ));
-    }
     if let Some(x) = o.exposure
         && !(x.is_finite() && x > 0.0)
     {
@@ -343,7 +349,7 @@ pub fn batch_options(a: &BakeArgs) -> Result<BatchOptions, String> {
     Ok(BatchOptions {
         out_dir: o.out.clone(),
         quality: o.quality.into(),
-        falloff: o.falloff,
+        falloff: o.falloff.map(FalloffArg::distance),
         kernel: match a.kernel {
             KernelArg::Flatland => Kernel::Flatland,
             KernelArg::Paper => Kernel::Paper,
@@ -365,6 +371,7 @@ pub fn batch_options(a: &BakeArgs) -> Result<BatchOptions, String> {
         layers: o.layers,
         cache: o.cache,
         force: a.force,
+        shard: a.shard,
     })
 }
 
@@ -388,8 +395,12 @@ fn bake(a: &BakeArgs) -> u8 {
             return EXIT_USAGE;
         }
     };
-    let ui = Progress::new(a.quiet, batch::collect_levels(&a.paths).len());
-    let outcomes = match with_jobs(a.output.jobs, || batch::run(&a.paths, &opts, &ui)) {
+    let levels = batch::select_levels(&a.paths, &opts).len();
+    if !a.quiet {
+        crate::shard::announce(&a.paths, &opts, levels);
+    }
+    let ui = Progress::new(a.quiet, levels);
+    let run = match with_jobs(a.output.jobs, || batch::run_batch(&a.paths, &opts, &ui)) {
         Ok(o) => o,
         Err(e) => {
             eprintln!("flatbake: {e}");
@@ -397,6 +408,8 @@ fn bake(a: &BakeArgs) -> u8 {
         }
     };
     ui.finish();
+    let summary_failed = crate::shard::report_summary(&run.summary);
+    let outcomes = run.outcomes;
     let failed = outcomes
         .iter()
         .filter(|o| matches!(o, LevelOutcome::Failed { .. }))
@@ -413,7 +426,11 @@ fn bake(a: &BakeArgs) -> u8 {
             a.output.out.display()
         );
     }
-    if failed > 0 { EXIT_FAILED } else { EXIT_OK }
+    if failed > 0 || summary_failed {
+        EXIT_FAILED
+    } else {
+        EXIT_OK
+    }
 }
 
 fn relight(a: &RelightArgs) -> u8 {
@@ -462,8 +479,9 @@ fn watch(a: &WatchArgs) -> u8 {
         gather: GatherArg::Fast,
         bounces: None,
         max_pixels: LoadLimits::default().max_pixels,
-        quiet: false,
+        quiet: a.quiet,
         force: false,
+        shard: None,
     };
     let batch = match batch_options(&bake_args) {
         Ok(o) => o,
@@ -477,14 +495,17 @@ fn watch(a: &WatchArgs) -> u8 {
         batch,
         debounce: Duration::from_millis(a.debounce),
     };
+    let quiet = a.quiet;
     // Runs until the process is interrupted (Ctrl-C ends it).
     let stop = std::sync::atomic::AtomicBool::new(false);
     let result = with_jobs(a.output.jobs, || {
         crate::watch::run(&opts, &stop, &mut |ev| match ev {
+            crate::watch::WatchEvent::Watching { .. } if quiet => {}
             crate::watch::WatchEvent::Watching { dir } => {
                 eprintln!("watching {} (Ctrl-C stops)", dir.display())
             }
             crate::watch::WatchEvent::WatchError(e) => eprintln!("watch error: {e}"),
+            crate::watch::WatchEvent::Level(o) if quiet && !is_failure(&o) => {}
             crate::watch::WatchEvent::Level(o) => eprintln!("{}", outcome_line(&o)),
         })
     });
@@ -495,6 +516,11 @@ fn watch(a: &WatchArgs) -> u8 {
             EXIT_FAILED
         }
     }
+}
+
+/// True for a level that failed (what `--quiet` still prints).
+fn is_failure(o: &LevelOutcome) -> bool {
+    matches!(o, LevelOutcome::Failed { .. })
 }
 
 /// One line about a level's outcome, as watch prints it.
