@@ -13,12 +13,17 @@ use std::time::Duration;
 use clap::{Args, Parser, Subcommand};
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-use flatbake_core::bake::{GatherMethod, MAX_BOUNCES};
-use flatbake_core::batch::{self, BatchOptions, LevelOutcome, Observer};
+use flatbake_core::bake::GatherMethod;
+use flatbake_core::batch::{self, BatchOptions, LevelOutcome, Observer, Shard};
 use flatbake_core::gather::Kernel;
 use flatbake_core::level::LoadLimits;
 use flatbake_core::output::Depth;
 use flatbake_core::quality::Quality;
+
+use crate::flags::{
+    FalloffArg, parse_bounces, parse_debounce, parse_depth, parse_falloff, parse_jobs,
+    parse_max_pixels, parse_shard,
+};
 
 /// Exit status when every level baked.
 pub const EXIT_OK: u8 = 0;
@@ -36,7 +41,8 @@ pub const EXIT_USAGE: u8 = 2;
     name = "flatbake",
     version,
     about = "Bake 2D radiosity lightmaps for levels painted as bitmaps",
-    after_help = "Exit status: 0 all levels baked, 1 at least one level failed, 2 bad command line."
+    after_help = "Exit status: 0 all levels baked, 1 at least one level failed, 2 bad command line.\n\
+                  Examples for each subcommand: flatbake help SUBCOMMAND (e.g. flatbake help bake)."
 )]
 pub struct Cli {
     #[command(subcommand)]
@@ -46,14 +52,19 @@ pub struct Cli {
 #[derive(Subcommand, Debug)]
 pub enum Command {
     /// Bake levels (image files, or folders of them) into lightmaps.
+    #[command(after_help = crate::flags::BAKE_EXAMPLES)]
     Bake(BakeArgs),
     /// Show the built-in palette (or one palette file).
+    #[command(after_help = crate::flags::PALETTE_EXAMPLES)]
     Palette(PaletteArgs),
     /// Measure the price of accuracy: bake at every preset, time it, compare to reference.
+    #[command(after_help = crate::flags::SWEEP_EXAMPLES)]
     Sweep(SweepArgs),
     /// New lightmaps for new emission from a `bake --cache` file, without baking again.
+    #[command(after_help = crate::flags::RELIGHT_EXAMPLES)]
     Relight(RelightArgs),
     /// Bake every level in a folder, then re-bake each level whenever it or its palette is saved.
+    #[command(after_help = crate::flags::WATCH_EXAMPLES)]
     Watch(WatchArgs),
 }
 
@@ -88,8 +99,11 @@ pub struct WatchArgs {
     #[command(flatten)]
     pub output: OutputArgs,
     /// Quiet time after the last save before baking, in milliseconds.
-    #[arg(long, value_name = "MS", default_value_t = 300)]
+    #[arg(long, value_name = "MS", default_value_t = 300, value_parser = parse_debounce, allow_negative_numbers = true)]
     pub debounce: u64,
+    /// Print only errors.
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 /// What to bake and write: the flags `bake` and `watch` share.
@@ -101,9 +115,9 @@ pub struct OutputArgs {
     /// Accuracy preset: draft (preview while painting), normal (daily), high (shipping), reference (converged).
     #[arg(short, long, value_enum, default_value_t = QualityArg::Normal)]
     pub quality: QualityArg,
-    /// Light falloff: half-energy distance in pixels (overrides the palette).
-    #[arg(long, value_name = "PIXELS")]
-    pub falloff: Option<f64>,
+    /// Light falloff: half-energy distance in pixels, or none (overrides the palette).
+    #[arg(long, value_name = "PIXELS|none", value_parser = parse_falloff, allow_negative_numbers = true)]
+    pub falloff: Option<FalloffArg>,
     /// Palette for every level (instead of the lookup beside each level).
     #[arg(long, value_name = "FILE")]
     pub palette: Option<PathBuf>,
@@ -120,13 +134,13 @@ pub struct OutputArgs {
     #[arg(long)]
     pub cache: bool,
     /// Bits per channel of the PNG outputs.
-    #[arg(long, value_name = "BITS", default_value_t = 8, value_parser = parse_depth)]
+    #[arg(long, value_name = "BITS", default_value_t = 8, value_parser = parse_depth, allow_negative_numbers = true)]
     pub depth: u8,
     /// Multiply the PNG lightmaps by this (overrides the palette).
-    #[arg(long, value_name = "X")]
+    #[arg(long, value_name = "X", allow_negative_numbers = true)]
     pub exposure: Option<f64>,
     /// Worker threads, 1 to 512 (default: all cores).
-    #[arg(short, long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=MAX_JOBS))]
+    #[arg(short, long, value_name = "N", value_parser = parse_jobs, allow_negative_numbers = true)]
     pub jobs: Option<u16>,
 }
 
@@ -138,8 +152,11 @@ pub struct SweepArgs {
     /// Folder for accuracy.csv, accuracy.md and accuracy.png.
     #[arg(short = 'o', long = "out", default_value = "out/sweep")]
     pub out: PathBuf,
+    /// Print only errors.
+    #[arg(long)]
+    pub quiet: bool,
     /// Worker threads, 1 to 512 (default: all cores).
-    #[arg(short, long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=MAX_JOBS))]
+    #[arg(short, long, value_name = "N", value_parser = parse_jobs, allow_negative_numbers = true)]
     pub jobs: Option<u16>,
 }
 
@@ -157,10 +174,10 @@ pub struct BakeArgs {
     #[arg(long, value_enum, default_value_t = GatherArg::Fast)]
     pub gather: GatherArg,
     /// Truncate the bounce series: 0 = direct light only, at most 1000 (overrides the palette).
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=MAX_BOUNCES as i64))]
+    #[arg(long, value_name = "N", value_parser = parse_bounces, allow_negative_numbers = true)]
     pub bounces: Option<u32>,
     /// Refuse images with more pixels than this (checked before decoding).
-    #[arg(long, value_name = "N", default_value_t = LoadLimits::default().max_pixels, value_parser = clap::value_parser!(u64).range(1..))]
+    #[arg(long, value_name = "N", default_value_t = LoadLimits::default().max_pixels, value_parser = parse_max_pixels, allow_negative_numbers = true)]
     pub max_pixels: u64,
     /// Refuse a level whose estimated peak memory is above SIZE (e.g. 16G, 512M), checked after
     /// tracing its walls; `auto`: the memory the machine has free; `none`: no limit.
@@ -172,6 +189,9 @@ pub struct BakeArgs {
     /// Bake levels even when their outputs are up to date.
     #[arg(long)]
     pub force: bool,
+    /// Bake only shard K of N (1 <= K <= N): a fixed 1/N of the levels, chosen by a hash of each level's name.
+    #[arg(long, value_name = "K/N", value_parser = parse_shard)]
+    pub shard: Option<Shard>,
 }
 
 /// `--max-memory`: how much memory one level's bake may use.
@@ -201,14 +221,6 @@ fn parse_memory(s: &str) -> Result<MemoryLimit, String> {
         "auto" => Ok(MemoryLimit::Auto),
         "none" | "off" | "unlimited" => Ok(MemoryLimit::Unlimited),
         _ => flatbake_core::bake::memory::parse_size(s).map(MemoryLimit::Bytes),
-    }
-}
-
-fn parse_depth(s: &str) -> Result<u8, String> {
-    match s {
-        "8" => Ok(8),
-        "16" => Ok(16),
-        _ => Err(format!("the PNG depth is 8 or 16 bits, not {s}")),
     }
 }
 
@@ -305,7 +317,7 @@ pub fn run(cli: Cli) -> u8 {
 }
 
 fn sweep(a: &SweepArgs) -> u8 {
-    let tty = std::io::stderr().is_terminal();
+    let tty = !a.quiet && std::io::stderr().is_terminal();
     let spinner = if tty {
         ProgressBar::new_spinner()
     } else {
@@ -328,6 +340,7 @@ fn sweep(a: &SweepArgs) -> u8 {
     });
     spinner.finish_and_clear();
     match result {
+        Ok(Ok(_)) if a.quiet => EXIT_OK,
         Ok(Ok(all)) => {
             for (level, rows, check) in &all {
                 for r in rows {
@@ -361,13 +374,6 @@ fn sweep(a: &SweepArgs) -> u8 {
 /// Checks flag values that clap cannot, and builds the library options.
 pub fn batch_options(a: &BakeArgs) -> Result<BatchOptions, String> {
     let o = &a.output;
-    if let Some(f) = o.falloff
-        && !(f.is_finite() && f > 0.0)
-    {
-        return Err(format!(
-            "--falloff must be a positive number of pixels, not {f}"
-        ));
-    }
     if let Some(x) = o.exposure
         && !(x.is_finite() && x > 0.0)
     {
@@ -377,7 +383,7 @@ pub fn batch_options(a: &BakeArgs) -> Result<BatchOptions, String> {
     Ok(BatchOptions {
         out_dir: o.out.clone(),
         quality: o.quality.into(),
-        falloff: o.falloff,
+        falloff: o.falloff.map(FalloffArg::distance),
         kernel: match a.kernel {
             KernelArg::Flatland => Kernel::Flatland,
             KernelArg::Paper => Kernel::Paper,
@@ -400,6 +406,7 @@ pub fn batch_options(a: &BakeArgs) -> Result<BatchOptions, String> {
         cache: o.cache,
         force: a.force,
         max_memory: a.max_memory.bytes(),
+        shard: a.shard,
     })
 }
 
@@ -423,8 +430,12 @@ fn bake(a: &BakeArgs) -> u8 {
             return EXIT_USAGE;
         }
     };
-    let ui = Progress::new(a.quiet, batch::collect_levels(&a.paths).len());
-    let outcomes = match with_jobs(a.output.jobs, || batch::run(&a.paths, &opts, &ui)) {
+    let levels = batch::select_levels(&a.paths, &opts).len();
+    if !a.quiet {
+        crate::shard::announce(&a.paths, &opts, levels);
+    }
+    let ui = Progress::new(a.quiet, levels);
+    let run = match with_jobs(a.output.jobs, || batch::run_batch(&a.paths, &opts, &ui)) {
         Ok(o) => o,
         Err(e) => {
             eprintln!("flatbake: {e}");
@@ -432,6 +443,8 @@ fn bake(a: &BakeArgs) -> u8 {
         }
     };
     ui.finish();
+    let summary_failed = crate::shard::report_summary(&run.summary);
+    let outcomes = run.outcomes;
     let failed = outcomes
         .iter()
         .filter(|o| matches!(o, LevelOutcome::Failed { .. }))
@@ -448,7 +461,11 @@ fn bake(a: &BakeArgs) -> u8 {
             a.output.out.display()
         );
     }
-    if failed > 0 { EXIT_FAILED } else { EXIT_OK }
+    if failed > 0 || summary_failed {
+        EXIT_FAILED
+    } else {
+        EXIT_OK
+    }
 }
 
 fn relight(a: &RelightArgs) -> u8 {
@@ -498,8 +515,9 @@ fn watch(a: &WatchArgs) -> u8 {
         bounces: None,
         max_pixels: LoadLimits::default().max_pixels,
         max_memory: MemoryLimit::Auto,
-        quiet: false,
+        quiet: a.quiet,
         force: false,
+        shard: None,
     };
     let batch = match batch_options(&bake_args) {
         Ok(o) => o,
@@ -513,14 +531,17 @@ fn watch(a: &WatchArgs) -> u8 {
         batch,
         debounce: Duration::from_millis(a.debounce),
     };
+    let quiet = a.quiet;
     // Runs until the process is interrupted (Ctrl-C ends it).
     let stop = std::sync::atomic::AtomicBool::new(false);
     let result = with_jobs(a.output.jobs, || {
         crate::watch::run(&opts, &stop, &mut |ev| match ev {
+            crate::watch::WatchEvent::Watching { .. } if quiet => {}
             crate::watch::WatchEvent::Watching { dir } => {
                 eprintln!("watching {} (Ctrl-C stops)", dir.display())
             }
             crate::watch::WatchEvent::WatchError(e) => eprintln!("watch error: {e}"),
+            crate::watch::WatchEvent::Level(o) if quiet && !is_failure(&o) => {}
             crate::watch::WatchEvent::Level(o) => eprintln!("{}", outcome_line(&o)),
         })
     });
@@ -531,6 +552,11 @@ fn watch(a: &WatchArgs) -> u8 {
             EXIT_FAILED
         }
     }
+}
+
+/// True for a level that failed (what `--quiet` still prints).
+fn is_failure(o: &LevelOutcome) -> bool {
+    matches!(o, LevelOutcome::Failed { .. })
 }
 
 /// One line about a level's outcome, as watch prints it.

@@ -103,7 +103,14 @@ fn truncated_empty_and_non_image_files_are_named_with_their_problem() {
     let o = flatbake_mixed(&[&"bake", &dir.path().join("nowhere.png"), &"-o", &out]);
     assert_exit(&o, EXIT_FAILED);
     assert_says(&o, &["nowhere.png", "file not found"]);
-    assert!(!out.exists() || std::fs::read_dir(&out).unwrap().next().is_none());
+    // Nothing but the batch summary, which names the failure.
+    let left: Vec<String> = std::fs::read_dir(&out)
+        .map(|rd| {
+            rd.map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                .collect()
+        })
+        .unwrap_or_default();
+    assert!(left.iter().all(|f| f == "batch.json"), "{left:?}");
 }
 
 /// The format comes from the content: a PNG named `.jpg` or `.bmp` bakes.
@@ -617,10 +624,10 @@ fn bad_flag_values_are_usage_errors() {
         ("--falloff", "0", "--falloff must be a positive number"),
         ("--falloff", "nan", "--falloff must be a positive number"),
         ("--exposure", "-1", "--exposure must be a positive number"),
-        ("--jobs", "0", "0 is not in 1..=512"),
-        ("--jobs", "100000", "100000 is not in 1..=512"),
-        ("--bounces", "1001", "1001 is not in 0..=1000"),
-        ("--bounces", "4294967295", "4294967295 is not in 0..=1000"),
+        ("--jobs", "0", "--jobs takes 1 to 512 worker threads, not 0"),
+        ("--jobs", "100000", "--jobs takes 1 to 512 worker threads"),
+        ("--bounces", "1001", "--bounces takes 0 to 1000"),
+        ("--bounces", "4294967295", "not 4294967295"),
     ] {
         let arg = format!("{flag}={value}");
         let o = flatbake_mixed(&[&"bake", &lvl, &"-o", &dir.path().join("out"), &arg]);

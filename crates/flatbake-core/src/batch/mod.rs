@@ -6,7 +6,9 @@
 //! status.
 
 pub mod relight;
+pub mod shard;
 pub mod stamp;
+pub mod summary;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -20,9 +22,11 @@ use crate::gather::Kernel;
 use crate::level::palette::Palette;
 use crate::level::{self, LoadLimits};
 use crate::output::cache::{Cache, CacheError};
-use crate::output::{self, Depth, Encoded, OutputKind, OutputOptions, names};
+use crate::output::{self, Depth, Encoded, OutputError, OutputKind, OutputOptions, names};
 use crate::quality::Quality;
+pub use shard::{Shard, ShardError};
 use stamp::Recipe;
+pub use summary::BatchSummary;
 
 /// Options for a batch, as given on the command line (palette `[bake]`
 /// settings fill in what is `None` here, per level).
@@ -32,8 +36,10 @@ pub struct BatchOptions {
     pub out_dir: PathBuf,
     /// Accuracy preset. Default `normal`.
     pub quality: Quality,
-    /// Half-energy distance of the falloff in pixels; `None`: the palette's, or none.
-    pub falloff: Option<f64>,
+    /// Falloff, overriding the palette's `[bake] falloff`: `Some(Some(d))`
+    /// a half-energy distance of `d` pixels, `Some(None)` no falloff
+    /// whatever the palette says; `None`: the palette's, or none.
+    pub falloff: Option<Option<f64>>,
     /// Transport kernel. Default flatland.
     pub kernel: Kernel,
     /// Floor gather. Default fast.
@@ -62,6 +68,9 @@ pub struct BatchOptions {
     /// (see [`bake::MemoryEstimate`]); `None`: no limit. Changes no output
     /// byte, so it is not part of the stamp.
     pub max_memory: Option<u64>,
+    /// Bake only this shard of the levels ([`shard`]); `None`: all of them.
+    /// Not part of the stamp: a level's outputs do not depend on it.
+    pub shard: Option<Shard>,
 }
 
 impl BatchOptions {
@@ -102,7 +111,7 @@ impl BatchOptions {
     /// command line's, with the palette's `[bake]` filling in the rest.
     pub fn settings(&self, palette: &Palette) -> Settings {
         let mut settings = Settings::new(self.quality);
-        settings.falloff = self.falloff.or(palette.settings.falloff);
+        settings.falloff = self.falloff.unwrap_or(palette.settings.falloff);
         settings.bounces = self.bounces.or(palette.settings.bounces);
         settings.kernel = self.kernel;
         settings.gather = self.gather;
@@ -141,6 +150,7 @@ impl Default for BatchOptions {
             cache: false,
             force: false,
             max_memory: None,
+            shard: None,
         }
     }
 }
@@ -287,6 +297,17 @@ pub fn is_level_file(p: &Path) -> bool {
     LEVEL_EXTENSIONS.contains(&ext.as_str()) && !names::is_output_image(name)
 }
 
+/// The levels a batch of `paths` bakes with `opts`: [`collect_levels`],
+/// and of those only the ones in `opts.shard` ([`Shard::holds`], by level
+/// name), in the same order.
+pub fn select_levels(paths: &[PathBuf], opts: &BatchOptions) -> Vec<PathBuf> {
+    let mut levels = collect_levels(paths);
+    if let Some(shard) = opts.shard {
+        levels.retain(|p| shard.holds(&names::level_name(p)));
+    }
+    levels
+}
+
 /// Removes the temporary files that a killed flatbake left in `dir`. Only
 /// called while holding the folder's lock: then no other flatbake is writing
 /// there, and every such file is a leftover.
@@ -306,16 +327,56 @@ fn remove_stale_temporaries(dir: &Path) {
     }
 }
 
-/// Bakes every level; returns the outcomes in input order.
+/// Bakes every level (of `opts.shard`); returns the outcomes in input
+/// order. Writes no batch summary (see [`run_batch`]).
 pub fn run(paths: &[PathBuf], opts: &BatchOptions, observer: &dyn Observer) -> Vec<LevelOutcome> {
-    let levels = collect_levels(paths);
-    // Up-to-date checks and writes happen under the folder's lock, so that
-    // they see no other process's half-written set.
+    let levels = select_levels(paths, opts);
+    let _lock = lock_folder(opts, observer);
+    bake_levels(&levels, opts, observer)
+}
+
+/// What [`run_batch`] did: every level's outcome, and where the batch
+/// summary went.
+#[derive(Debug)]
+pub struct BatchRun {
+    /// The outcomes, in input order.
+    pub outcomes: Vec<LevelOutcome>,
+    /// The batch summary as written, or why it could not be.
+    pub summary: Result<(PathBuf, BatchSummary), OutputError>,
+}
+
+/// [`run`], then the batch summary ([`BatchSummary`]: `batch.json`, or
+/// `batch-K-of-N.json` for a shard) written into the output folder while
+/// the folder is still held. This is what `flatbake bake` runs.
+pub fn run_batch(paths: &[PathBuf], opts: &BatchOptions, observer: &dyn Observer) -> BatchRun {
+    let start = Instant::now();
+    let levels = select_levels(paths, opts);
+    let _lock = lock_folder(opts, observer);
+    let outcomes = bake_levels(&levels, opts, observer);
+    let summary = BatchSummary::new(opts, &outcomes, start.elapsed().as_secs_f64());
+    let summary = summary.write(&opts.out_dir).map(|path| (path, summary));
+    BatchRun { outcomes, summary }
+}
+
+/// Takes the output folder for this process (and, when that worked, clears
+/// what a killed flatbake left there). Up-to-date checks and writes happen
+/// under the folder's lock, so that they see no other process's
+/// half-written set.
+fn lock_folder(opts: &BatchOptions, observer: &dyn Observer) -> FolderLock {
     let lock = FolderLock::acquire(&opts.out_dir, || observer.waiting_for_folder(&opts.out_dir));
     if lock.is_held() {
         remove_stale_temporaries(&opts.out_dir);
     }
-    let clashes = output_clashes(&levels);
+    lock
+}
+
+/// Bakes `levels` in parallel (the caller holds the folder).
+fn bake_levels(
+    levels: &[PathBuf],
+    opts: &BatchOptions,
+    observer: &dyn Observer,
+) -> Vec<LevelOutcome> {
+    let clashes = output_clashes(levels);
     let fingerprint = opts.fingerprint();
     levels
         .par_iter()

@@ -100,6 +100,13 @@ fn stamp_path(recipe: &Recipe, out_dir: &Path) -> std::path::PathBuf {
     out_dir.join(OutputKind::Stamp.file_name(&names::level_name(recipe.image)))
 }
 
+/// The stamp of level image `image` in `out_dir`, if there is a readable one.
+pub fn read(image: &Path, out_dir: &Path) -> Option<Stamp> {
+    let path = out_dir.join(OutputKind::Stamp.file_name(&names::level_name(image)));
+    let text = std::fs::read(path).ok()?;
+    serde_json::from_slice(&text).ok()
+}
+
 /// True when the outputs of `recipe`'s level in `out_dir` were made from the
 /// same inputs and all still hold the bytes the bake wrote. Any doubt (no
 /// stamp, unreadable stamp, unreadable input or output) means "not up to

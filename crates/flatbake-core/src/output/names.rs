@@ -10,6 +10,19 @@ pub const TEMP_PREFIX: &str = ".flatbake-";
 /// Suffix of the temporary files that writes go through.
 pub const TEMP_SUFFIX: &str = ".tmp";
 
+/// The batch summary a run without shards writes into its output folder.
+pub const BATCH_SUMMARY: &str = "batch.json";
+
+/// The batch summary's file name: `batch.json` for a whole batch,
+/// `batch-K-of-N.json` for shard K of N, so that shards baking into one
+/// folder do not replace each other's summary.
+pub fn batch_summary(shard: Option<(u32, u32)>) -> String {
+    match shard {
+        None => BATCH_SUMMARY.into(),
+        Some((k, n)) => format!("batch-{k}-of-{n}.json"),
+    }
+}
+
 /// The name a level's outputs are written under: its image's file stem
 /// (`levels/cave.png` is `cave`).
 pub fn level_name(image: &Path) -> String {
