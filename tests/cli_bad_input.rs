@@ -793,3 +793,28 @@ fn a_level_over_the_memory_limit_is_refused_with_its_estimate() {
         assert_says(&o, &[words]);
     }
 }
+
+/// The PNG whose palette chunk makes the decoder panic (4 bytes of PLTE and a
+/// tRNS chunk) is refused before decoding with what is wrong in it, not as a
+/// caught internal error.
+#[test]
+fn a_png_palette_of_a_partial_colour_is_named_before_decoding() {
+    let dir = tempfile::tempdir().unwrap();
+    copy(dir.path(), "png_plte_trns_panic.png", "bad.png");
+    let o = flatbake_mixed(&[
+        &"bake",
+        &dir.path().join("bad.png"),
+        &"-o",
+        &dir.path().join("out"),
+    ]);
+    assert_exit(&o, EXIT_FAILED);
+    assert_says(
+        &o,
+        &[
+            "bad.png",
+            "PNG file is corrupt",
+            "PLTE (palette) chunk is 4 bytes",
+        ],
+    );
+    assert!(!stderr(&o).contains("internal error"), "{}", stderr(&o));
+}

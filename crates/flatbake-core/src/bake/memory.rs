@@ -167,7 +167,7 @@ pub fn parse_size(s: &str) -> Result<u64, String> {
         }
     };
     let bytes = x * scale;
-    if !(bytes.is_finite() && bytes >= 1.0 && bytes < 1.8e19) {
+    if !(1.0..1.8e19).contains(&bytes) {
         return Err(format!(
             "`{s}` is not a usable memory size: give at least 1 byte (e.g. 16G)"
         ));

@@ -85,6 +85,14 @@ pub fn read_image(path: &Path, limits: LoadLimits) -> Result<RgbaImage, LevelErr
         }));
     }
 
+    if format == ImageFormat::Png
+        && let Some(detail) = png_palette_problem(path)
+    {
+        return Err(fail(ImageProblem::Corrupt {
+            format: format_name(format),
+            detail,
+        }));
+    }
     let mut reader = open()?;
     let mut decode_limits = image::Limits::default();
     // The declared size passed the check above; hold the decoder to it, and
@@ -97,6 +105,33 @@ pub fn read_image(path: &Path, limits: LoadLimits) -> Result<RgbaImage, LevelErr
         .decode()
         .map_err(|e| fail(decode_message(e, format)))?;
     Ok(img.into_rgba8())
+}
+
+/// A palette chunk the `png` decoder cannot take: its length is not a whole
+/// number of 3-byte colours, or more than 256 of them (the decoder panics on
+/// some of these, with a tRNS chunk). Walks the chunk headers before the
+/// image data; `None` when the palette is fine, absent, or the file cannot
+/// be walked (the decoder then says what is wrong).
+fn png_palette_problem(path: &Path) -> Option<String> {
+    use std::io::{Seek, SeekFrom};
+    let mut f = BufReader::new(File::open(path).ok()?);
+    f.seek(SeekFrom::Start(8)).ok()?;
+    loop {
+        let mut header = [0u8; 8];
+        f.read_exact(&mut header).ok()?;
+        let len = u32::from_be_bytes([header[0], header[1], header[2], header[3]]);
+        match &header[4..8] {
+            b"PLTE" if len == 0 || len % 3 != 0 || len > 768 => {
+                return Some(format!(
+                    "its PLTE (palette) chunk is {len} bytes, not 1 to 256 colours of 3 bytes"
+                ));
+            }
+            b"PLTE" | b"IDAT" | b"IEND" => return None,
+            _ => {}
+        }
+        // The chunk's data and CRC.
+        f.seek(SeekFrom::Current(i64::from(len) + 4)).ok()?;
+    }
 }
 
 /// Width and height from a PNG signature followed by its IHDR chunk.
