@@ -116,7 +116,7 @@ impl BatchOptions {
             .unwrap_or(Exposure::Fixed(1.0))
     }
 
-    /// How a level is encoded, at `exposure` (see [`BatchOptions::exposure`]).
+    /// How a level is encoded, at `exposure` (see [`BatchOptions::exposure()`]).
     pub fn output_options(&self, exposure: f64) -> OutputOptions {
         OutputOptions {
             exposure,

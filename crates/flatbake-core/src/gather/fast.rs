@@ -155,8 +155,9 @@ impl<'a> Tally<'a> {
 }
 
 /// Adds to `acc` the light that pixel centre `p` receives from its visible
-/// spans (all of them: the falloff reach is applied by the visibility query,
-/// [`for_each_visibility`], which passes on only the spans within reach).
+/// spans (all of them: the falloff reach is applied by the visibility
+/// query, [`for_each_visibility`](crate::visibility::for_each_visibility),
+/// which passes on only the spans within reach).
 /// Reflected light is gathered from `tree`'s nodes ([`PatchTree`]), as cut
 /// for `p`'s tile: `p` must be the centre of a pixel, since the cut's bound
 /// is taken at the tile's pixel centres.
