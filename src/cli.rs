@@ -13,11 +13,11 @@ use std::time::Duration;
 use clap::{Args, Parser, Subcommand};
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-use flatbake_core::bake::GatherMethod;
+use flatbake_core::bake::{GatherMethod, Report};
 use flatbake_core::batch::{self, BatchOptions, LevelOutcome, Observer, Shard};
 use flatbake_core::gather::Kernel;
 use flatbake_core::level::LoadLimits;
-use flatbake_core::output::Depth;
+use flatbake_core::output::{Depth, Exposure};
 use flatbake_core::quality::Quality;
 
 use crate::flags::{
@@ -136,12 +136,36 @@ pub struct OutputArgs {
     /// Bits per channel of the PNG outputs.
     #[arg(long, value_name = "BITS", default_value_t = 8, value_parser = parse_depth, allow_negative_numbers = true)]
     pub depth: u8,
-    /// Multiply the PNG lightmaps by this (overrides the palette).
-    #[arg(long, value_name = "X", allow_negative_numbers = true)]
-    pub exposure: Option<f64>,
+    /// Multiply the PNG lightmaps by this, or "auto": the 99th percentile of the floor's light at 90 % of full scale (overrides the palette).
+    #[arg(long, value_name = "X|auto", value_parser = parse_exposure, allow_negative_numbers = true)]
+    pub exposure: Option<ExposureArg>,
     /// Worker threads, 1 to 512 (default: all cores).
     #[arg(short, long, value_name = "N", value_parser = parse_jobs, allow_negative_numbers = true)]
     pub jobs: Option<u16>,
+    /// Treat warnings as failures (exit status 1), for CI.
+    #[arg(long)]
+    pub strict: bool,
+    /// Also print the technical detail of each level (what the report holds).
+    #[arg(long)]
+    pub verbose: bool,
+}
+
+/// `--exposure`: a factor, or chosen per level.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ExposureArg {
+    /// Multiply by this.
+    Fixed(f64),
+    /// Chosen from each level's light.
+    Auto,
+}
+
+fn parse_exposure(s: &str) -> Result<ExposureArg, String> {
+    if s.eq_ignore_ascii_case("auto") {
+        return Ok(ExposureArg::Auto);
+    }
+    s.parse::<f64>()
+        .map(ExposureArg::Fixed)
+        .map_err(|_| format!("the exposure is a number (such as 0.5) or \"auto\", not {s:?}"))
 }
 
 #[derive(Args, Debug)]
@@ -374,7 +398,7 @@ fn sweep(a: &SweepArgs) -> u8 {
 /// Checks flag values that clap cannot, and builds the library options.
 pub fn batch_options(a: &BakeArgs) -> Result<BatchOptions, String> {
     let o = &a.output;
-    if let Some(x) = o.exposure
+    if let Some(ExposureArg::Fixed(x)) = o.exposure
         && !(x.is_finite() && x > 0.0)
     {
         return Err(format!("--exposure must be a positive number, not {x}"));
@@ -391,7 +415,10 @@ pub fn batch_options(a: &BakeArgs) -> Result<BatchOptions, String> {
         gather: a.gather.into(),
         palette: o.palette.clone(),
         bounces: a.bounces,
-        exposure: o.exposure,
+        exposure: o.exposure.map(|e| match e {
+            ExposureArg::Fixed(x) => Exposure::Fixed(x),
+            ExposureArg::Auto => Exposure::Auto,
+        }),
         hdr: o.hdr,
         depth: if o.depth == 16 {
             Depth::Sixteen
@@ -434,7 +461,12 @@ fn bake(a: &BakeArgs) -> u8 {
     if !a.quiet {
         crate::shard::announce(&a.paths, &opts, levels);
     }
-    let ui = Progress::new(a.quiet, levels);
+    let voice = Voice {
+        quiet: a.quiet,
+        verbose: a.output.verbose,
+        strict: a.output.strict,
+    };
+    let ui = Progress::new(voice, opts.out_dir.clone(), levels);
     let run = match with_jobs(a.output.jobs, || batch::run_batch(&a.paths, &opts, &ui)) {
         Ok(o) => o,
         Err(e) => {
@@ -445,6 +477,14 @@ fn bake(a: &BakeArgs) -> u8 {
     ui.finish();
     let summary_failed = crate::shard::report_summary(&run.summary);
     let outcomes = run.outcomes;
+    let reports: Vec<Option<Report>> = outcomes
+        .iter()
+        .map(|o| match o {
+            LevelOutcome::Baked { report, .. } => Some((**report).clone()),
+            LevelOutcome::UpToDate { path } => batch::stored_report(&opts.out_dir, path),
+            LevelOutcome::Failed { .. } => None,
+        })
+        .collect();
     let failed = outcomes
         .iter()
         .filter(|o| matches!(o, LevelOutcome::Failed { .. }))
@@ -453,15 +493,35 @@ fn bake(a: &BakeArgs) -> u8 {
         .iter()
         .filter(|o| matches!(o, LevelOutcome::UpToDate { .. }))
         .count();
+    let warned = reports
+        .iter()
+        .flatten()
+        .filter(|r| !r.warnings.is_empty())
+        .count();
     if !a.quiet {
+        if outcomes.len() > 1 || failed > 0 {
+            eprint!("{}", summary_table(&outcomes, &reports, voice.strict));
+        }
         let baked = outcomes.len() - failed - current;
         eprintln!(
-            "flatbake: {baked} level{} baked into {}, {current} up to date, {failed} failed",
+            "flatbake: {baked} level{} baked into {}, {current} up to date, {failed} failed{}",
             if baked == 1 { "" } else { "s" },
-            a.output.out.display()
+            a.output.out.display(),
+            match warned {
+                0 => String::new(),
+                1 => ", 1 with warnings".to_string(),
+                n => format!(", {n} with warnings"),
+            }
         );
     }
-    if failed > 0 || summary_failed {
+    if voice.strict && warned > 0 {
+        eprintln!(
+            "flatbake: --strict: {warned} level{} with warnings count{} as failed",
+            if warned == 1 { "" } else { "s" },
+            if warned == 1 { "s" } else { "" }
+        );
+    }
+    if failed > 0 || summary_failed || (voice.strict && warned > 0) {
         EXIT_FAILED
     } else {
         EXIT_OK
@@ -526,23 +586,39 @@ fn watch(a: &WatchArgs) -> u8 {
             return EXIT_USAGE;
         }
     };
+    let voice = Voice {
+        quiet: a.quiet,
+        verbose: a.output.verbose,
+        strict: a.output.strict,
+    };
+    let out_dir = batch.out_dir.clone();
     let opts = crate::watch::WatchOptions {
         dir: a.dir.clone(),
         batch,
         debounce: Duration::from_millis(a.debounce),
     };
     let quiet = a.quiet;
+    // Every line carries the time it was printed: a designer glancing at
+    // the terminal sees whether the last line is from the last save.
+    let say = |line: &str| eprintln!("{} {line}", crate::watch::clock());
     // Runs until the process is interrupted (Ctrl-C ends it).
     let stop = std::sync::atomic::AtomicBool::new(false);
     let result = with_jobs(a.output.jobs, || {
         crate::watch::run(&opts, &stop, &mut |ev| match ev {
             crate::watch::WatchEvent::Watching { .. } if quiet => {}
             crate::watch::WatchEvent::Watching { dir } => {
-                eprintln!("watching {} (Ctrl-C stops)", dir.display())
+                say(&format!("watching {} (Ctrl-C stops)", dir.display()))
             }
-            crate::watch::WatchEvent::WatchError(e) => eprintln!("watch error: {e}"),
-            crate::watch::WatchEvent::Level(o) if quiet && !is_failure(&o) => {}
-            crate::watch::WatchEvent::Level(o) => eprintln!("{}", outcome_line(&o)),
+            crate::watch::WatchEvent::WatchError(e) => say(&format!("watch error: {e}")),
+            crate::watch::WatchEvent::Level(o) => {
+                let stored = match &o {
+                    LevelOutcome::UpToDate { path } => batch::stored_report(&out_dir, path),
+                    _ => None,
+                };
+                for (line, _) in outcome_lines(&o, stored.as_ref(), voice) {
+                    say(&line);
+                }
+            }
         })
     });
     match result {
@@ -554,24 +630,240 @@ fn watch(a: &WatchArgs) -> u8 {
     }
 }
 
-/// True for a level that failed (what `--quiet` still prints).
-fn is_failure(o: &LevelOutcome) -> bool {
-    matches!(o, LevelOutcome::Failed { .. })
+/// How much the console says about each level.
+#[derive(Clone, Copy, Debug)]
+struct Voice {
+    /// Only errors (and, with `strict`, warnings, which are then failures).
+    quiet: bool,
+    /// Also the technical detail of the report.
+    verbose: bool,
+    /// Warnings are failures.
+    strict: bool,
 }
 
-/// One line about a level's outcome, as watch prints it.
-fn outcome_line(o: &LevelOutcome) -> String {
-    match o {
-        LevelOutcome::Baked { path, report } => format!(
-            "baked {} in {:.2} s ({}): {}",
-            path.display(),
-            report.timings.total,
-            report.quality,
-            report.summary()
-        ),
-        LevelOutcome::Failed { error, .. } => format!("error: {error}"),
-        LevelOutcome::UpToDate { path } => format!("up to date: {}", path.display()),
+/// `n thing` or `n things`.
+fn count(n: usize, thing: &str) -> String {
+    if n == 1 {
+        format!("1 {thing}")
+    } else {
+        format!("{n} {thing}s")
     }
+}
+
+/// A fraction as a percentage with one decimal.
+fn percent(f: f64) -> String {
+    format!("{:.1}%", 100.0 * f)
+}
+
+/// The one plain line about a baked level: its time, quality, exposure,
+/// warnings, clipping, and what was left out in a designer's words.
+fn level_line(path: &Path, r: &Report) -> String {
+    let mut parts = vec![if r.warnings.is_empty() {
+        "no warnings".to_string()
+    } else {
+        count(r.warnings.len(), "warning")
+    }];
+    if r.counts.floor_pixels > 0 {
+        parts.push(format!("{} of the floor clipped", percent(r.clipped)));
+    }
+    if r.exposure_auto {
+        parts.push(format!("exposure {} (auto)", r.exposure));
+    } else if r.exposure != 1.0 {
+        parts.push(format!("exposure {}", r.exposure));
+    }
+    let mut line = format!(
+        "baked {} in {:.2} s ({} quality): {}",
+        path.display(),
+        r.timings.total,
+        r.quality,
+        parts.join(", ")
+    );
+    let skips = r.plain_skips();
+    if !skips.is_empty() {
+        line.push_str("; left out: ");
+        line.push_str(&skips.join(", "));
+    }
+    line
+}
+
+/// The report's technical detail, for `--verbose`.
+fn detail_lines(r: &Report) -> Vec<String> {
+    let t = &r.timings;
+    let c = &r.counts;
+    vec![
+        format!("  detail: {}", r.summary()),
+        format!(
+            "  size: {} x {} pixels, {} floor pixels, {} edges, {} patches, {} form-factor entries, solver {}, residual {:.1e}",
+            r.size[0],
+            r.size[1],
+            c.floor_pixels,
+            c.edges,
+            c.patches,
+            c.form_factor_entries,
+            r.solver,
+            r.residual
+        ),
+        format!(
+            "  seconds: load {:.3}, geometry {:.3}, form factors {:.3}, solve {:.3}, gather {:.3}, write {:.3}",
+            t.load, t.geometry, t.form_factors, t.solve, t.gather, t.write
+        ),
+    ]
+}
+
+/// The warning lines of a level: first the problems (a result that looks
+/// wrong), then the other warnings.
+fn warning_lines(path: &Path, r: &Report) -> Vec<String> {
+    let mut out: Vec<String> = r
+        .problems
+        .iter()
+        .map(|p| {
+            format!(
+                "warning: {}: the result looks wrong ({}): {}",
+                path.display(),
+                p.kind,
+                p.message
+            )
+        })
+        .collect();
+    out.extend(
+        r.warnings
+            .iter()
+            .filter(|w| !r.problems.iter().any(|p| &p.message == *w))
+            .map(|w| format!("warning: {}: {w}", path.display())),
+    );
+    out
+}
+
+/// What the console says about one finished level, line by line, each with
+/// whether it is an error (printed even when quiet). `stored` is the report
+/// of an up-to-date level's last bake.
+fn outcome_lines(o: &LevelOutcome, stored: Option<&Report>, voice: Voice) -> Vec<(String, bool)> {
+    let mut out = Vec::new();
+    match o {
+        LevelOutcome::Baked { path, report } => {
+            out.push((level_line(path, report), false));
+            if voice.verbose {
+                out.extend(detail_lines(report).into_iter().map(|l| (l, false)));
+            }
+            // Warnings are for people: shown by default, and failures
+            // (so printed even when quiet) with --strict.
+            out.extend(
+                warning_lines(path, report)
+                    .into_iter()
+                    .map(|l| (l, voice.strict)),
+            );
+            if voice.strict && !report.warnings.is_empty() {
+                out.push((strict_line(path, report.warnings.len()), true));
+            }
+        }
+        LevelOutcome::Failed { error, .. } => out.push((format!("error: {error}"), true)),
+        LevelOutcome::UpToDate { path } => {
+            let warned = stored.map_or(0, |r| r.warnings.len());
+            let last = if warned > 0 {
+                format!("; its last bake had {}", count(warned, "warning"))
+            } else {
+                String::new()
+            };
+            out.push((
+                format!(
+                    "up to date: {} (same image, palette and settings; --force bakes it again){last}",
+                    path.display()
+                ),
+                false,
+            ));
+            if voice.strict
+                && let Some(r) = stored
+                && warned > 0
+            {
+                out.extend(warning_lines(path, r).into_iter().map(|l| (l, true)));
+                out.push((strict_line(path, warned), true));
+            }
+        }
+    }
+    out
+}
+
+fn strict_line(path: &Path, warnings: usize) -> String {
+    format!(
+        "error: {}: {} and --strict makes warnings failures",
+        path.display(),
+        count(warnings, "warning")
+    )
+}
+
+/// The table printed at the end of a batch: one row per level with its
+/// size, time, warnings, clipped floor and status.
+fn summary_table(outcomes: &[LevelOutcome], reports: &[Option<Report>], strict: bool) -> String {
+    let mut rows = vec![[
+        "level".to_string(),
+        "size".to_string(),
+        "time".to_string(),
+        "warnings".to_string(),
+        "clipped".to_string(),
+        "status".to_string(),
+    ]];
+    for (o, r) in outcomes.iter().zip(reports) {
+        let dash = || "-".to_string();
+        let status = match (o, r) {
+            (LevelOutcome::Failed { .. }, _) => "failed".to_string(),
+            (LevelOutcome::UpToDate { .. }, _) => "up to date".to_string(),
+            (_, Some(r)) if !r.problems.is_empty() => {
+                let kinds: Vec<&str> = r.problems.iter().map(|p| p.kind.as_str()).collect();
+                format!("looks wrong: {}", kinds.join(", "))
+            }
+            (_, Some(r)) if !r.warnings.is_empty() => "baked, with warnings".to_string(),
+            _ => "ok".to_string(),
+        };
+        let status = match r {
+            Some(r) if strict && !r.warnings.is_empty() => format!("failed (--strict): {status}"),
+            _ => status,
+        };
+        rows.push(match r {
+            Some(r) => [
+                o.path().display().to_string(),
+                format!("{}x{}", r.size[0], r.size[1]),
+                match o {
+                    LevelOutcome::Baked { .. } => format!("{:.2} s", r.timings.total),
+                    _ => dash(),
+                },
+                r.warnings.len().to_string(),
+                if r.counts.floor_pixels > 0 {
+                    percent(r.clipped)
+                } else {
+                    dash()
+                },
+                status,
+            ],
+            None => [
+                o.path().display().to_string(),
+                dash(),
+                dash(),
+                dash(),
+                dash(),
+                status,
+            ],
+        });
+    }
+    let widths: Vec<usize> = (0..6)
+        .map(|c| rows.iter().map(|r| r[c].chars().count()).max().unwrap_or(0))
+        .collect();
+    let mut out = String::new();
+    for row in &rows {
+        let mut line = String::new();
+        for (c, cell) in row.iter().enumerate() {
+            let w = widths[c];
+            // Names and status read left to right; numbers line up on the right.
+            let cell = match c {
+                0 | 5 => format!("{cell:<w$}"),
+                _ => format!("{cell:>w$}"),
+            };
+            line.push_str(&cell);
+            line.push_str("  ");
+        }
+        out.push_str(line.trim_end());
+        out.push('\n');
+    }
+    out
 }
 
 fn palette(a: &PaletteArgs) -> u8 {
@@ -657,19 +949,35 @@ fn describe(p: &flatbake_core::level::palette::Palette) -> String {
     out
 }
 
-/// Progress on a terminal: one bar for the batch and a spinner per level
-/// being baked; finished levels print one line above the bars. Lines are
-/// printed whole, never interleaved, whatever the thread count.
+/// Progress on a terminal: one bar for the batch and one line per level
+/// being baked, a spinner with its stage, and during the gather a bar with
+/// the percentage done and the time left; finished levels print their lines
+/// above the bars. When standard error is not a terminal nothing is drawn,
+/// only the lines. Lines are printed whole, never interleaved, whatever the
+/// thread count.
 struct Progress {
-    quiet: bool,
+    voice: Voice,
+    out_dir: PathBuf,
     multi: MultiProgress,
     total: ProgressBar,
     spinners: Mutex<Vec<(PathBuf, ProgressBar)>>,
 }
 
+/// The look of a level's line while a stage without a known length runs.
+fn spinner_style() -> ProgressStyle {
+    ProgressStyle::with_template("  {spinner} {msg} {elapsed}")
+        .unwrap_or_else(|_| ProgressStyle::default_spinner())
+}
+
+/// The look of a level's line while the gather reports how far it is.
+fn gather_style() -> ProgressStyle {
+    ProgressStyle::with_template("  {msg} {bar:24.cyan/blue} {percent:>3}%  {eta} left")
+        .unwrap_or_else(|_| ProgressStyle::default_bar())
+}
+
 impl Progress {
-    fn new(quiet: bool, levels: usize) -> Progress {
-        let draw = if quiet || !std::io::stderr().is_terminal() {
+    fn new(voice: Voice, out_dir: PathBuf, levels: usize) -> Progress {
+        let draw = if voice.quiet || !std::io::stderr().is_terminal() {
             ProgressDrawTarget::hidden()
         } else {
             ProgressDrawTarget::stderr()
@@ -681,7 +989,8 @@ impl Progress {
                 .unwrap_or_else(|_| ProgressStyle::default_bar()),
         );
         Progress {
-            quiet,
+            voice,
+            out_dir,
             multi,
             total,
             spinners: Mutex::new(Vec::new()),
@@ -690,7 +999,7 @@ impl Progress {
 
     fn println(&self, line: String, error: bool) {
         if self.multi.is_hidden() {
-            if error || !self.quiet {
+            if error || !self.voice.quiet {
                 eprintln!("{line}");
             }
         } else {
@@ -700,6 +1009,15 @@ impl Progress {
 
     fn finish(&self) {
         self.total.finish_and_clear();
+    }
+
+    /// Runs `f` on the progress line of level `path`, if it has one.
+    fn with_line(&self, path: &Path, f: impl FnOnce(&ProgressBar)) {
+        if let Ok(v) = self.spinners.lock()
+            && let Some((_, sp)) = v.iter().find(|(p, _)| p == path)
+        {
+            f(sp);
+        }
     }
 }
 
@@ -721,10 +1039,7 @@ impl Observer for Progress {
         let sp = self
             .multi
             .insert_before(&self.total, ProgressBar::new_spinner());
-        sp.set_style(
-            ProgressStyle::with_template("  {spinner} {msg} {elapsed}")
-                .unwrap_or_else(|_| ProgressStyle::default_spinner()),
-        );
+        sp.set_style(spinner_style());
         sp.set_message(format!("{}: loading", display_name(path)));
         sp.enable_steady_tick(Duration::from_millis(120));
         if let Ok(mut v) = self.spinners.lock() {
@@ -733,11 +1048,24 @@ impl Observer for Progress {
     }
 
     fn stage(&self, path: &Path, stage: &str) {
-        if let Ok(v) = self.spinners.lock()
-            && let Some((_, sp)) = v.iter().find(|(p, _)| p == path)
-        {
+        self.with_line(path, |sp| {
+            if sp.length().is_some() {
+                sp.unset_length();
+                sp.set_style(spinner_style());
+            }
             sp.set_message(format!("{}: {stage}", display_name(path)));
-        }
+        });
+    }
+
+    fn fraction(&self, path: &Path, _stage: &str, done: f64) {
+        self.with_line(path, |sp| {
+            if sp.length().is_none() {
+                sp.set_style(gather_style());
+                sp.set_length(1000);
+                sp.reset_eta();
+            }
+            sp.set_position((done.clamp(0.0, 1.0) * 1000.0) as u64);
+        });
     }
 
     fn level_done(&self, outcome: &LevelOutcome) {
@@ -749,32 +1077,12 @@ impl Observer for Progress {
             self.multi.remove(&sp);
         }
         self.total.inc(1);
-        match outcome {
-            LevelOutcome::Baked { path, report } => {
-                self.println(
-                    format!(
-                        "baked {} in {:.2} s ({}): {}",
-                        path.display(),
-                        report.timings.total,
-                        report.quality,
-                        report.summary()
-                    ),
-                    false,
-                );
-                // Warnings (anti-aliasing, rescaled rows, ...) are also in the
-                // report; a designer at the terminal should see them too.
-                for w in &report.warnings {
-                    self.println(format!("warning: {}: {w}", path.display()), false);
-                }
-            }
-            LevelOutcome::Failed { error, .. } => self.println(format!("error: {error}"), true),
-            LevelOutcome::UpToDate { path } => self.println(
-                format!(
-                    "up to date: {} (same image, palette and settings; --force bakes it again)",
-                    path.display()
-                ),
-                false,
-            ),
+        let stored = match outcome {
+            LevelOutcome::UpToDate { path } => batch::stored_report(&self.out_dir, path),
+            _ => None,
+        };
+        for (line, error) in outcome_lines(outcome, stored.as_ref(), self.voice) {
+            self.println(line, error);
         }
     }
 }

@@ -20,6 +20,41 @@ use notify_debouncer_full::{DebounceEventResult, new_debouncer};
 
 use flatbake_core::batch::{self, BatchOptions, LevelOutcome, Silent};
 
+/// The local time of day, `HH:MM:SS`, that every line watch prints starts
+/// with (UTC where the local time zone cannot be read).
+pub fn clock() -> String {
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs() as i64);
+    let (h, m, s) = local_hms(secs);
+    format!("{h:02}:{m:02}:{s:02}")
+}
+
+#[cfg(unix)]
+fn local_hms(secs: i64) -> (i64, i64, i64) {
+    let t = secs as libc::time_t;
+    // SAFETY: `tm` is plain data that localtime_r fills in; both pointers
+    // are valid for the duration of the call, and localtime_r (unlike
+    // localtime) keeps no shared buffer.
+    let mut tm: libc::tm = unsafe { std::mem::zeroed() };
+    let ok = unsafe { !libc::localtime_r(&t, &mut tm).is_null() };
+    if ok {
+        (tm.tm_hour as i64, tm.tm_min as i64, tm.tm_sec as i64)
+    } else {
+        utc_hms(secs)
+    }
+}
+
+#[cfg(not(unix))]
+fn local_hms(secs: i64) -> (i64, i64, i64) {
+    utc_hms(secs)
+}
+
+fn utc_hms(secs: i64) -> (i64, i64, i64) {
+    let day = secs.rem_euclid(86_400);
+    (day / 3600, day / 60 % 60, day % 60)
+}
+
 /// How a watch runs.
 #[derive(Clone, Debug)]
 pub struct WatchOptions {

@@ -81,10 +81,14 @@ fn baking_a_folder_writes_every_output_and_a_complete_report() {
         );
         assert!(r["skipped"].is_array() && r["warnings"].is_array());
     }
-    // Not quiet: one line per level with its summary.
+    // Not quiet: one plain line per level, and a table for the batch.
     let err = stderr(&o);
     assert!(
-        err.contains("baked levels/a.png") && err.contains("3 solves"),
+        err.contains("baked levels/a.png") && err.contains("(normal quality)"),
+        "{err}"
+    );
+    assert!(
+        err.contains("levels/b.png") && err.contains("status"),
         "{err}"
     );
 }

@@ -77,6 +77,7 @@ fn level(name: &str, rows: &[&str]) -> Level {
         albedo,
         materials: vec![emitter()],
         warnings: vec![],
+        lossy_format: None,
     }
 }
 
@@ -694,6 +695,7 @@ fn an_empty_level_is_an_error_not_a_panic() {
         albedo: vec![],
         materials: vec![],
         warnings: vec![],
+        lossy_format: None,
     };
     let map = Lightmap {
         width: 0,

@@ -65,6 +65,7 @@ pub fn ascii(rows: &[&str], legend: &[(char, Material)]) -> Level {
         albedo,
         materials: legend.iter().map(|(_, m)| m.clone()).collect(),
         warnings: vec![],
+        lossy_format: None,
     }
 }
 

@@ -143,6 +143,7 @@ fn run(
                 reach: &rule.reach,
                 tolerance: rule.threshold,
                 decide: rule.decide,
+                progress: ctx.gather_progress.map(gather::OnProgress),
             };
             let (values, stats, counts) = gather::gather(geometry, patches, rad, reached, &options);
             if ctx.reach_bound > 0.0 && counts.pieces < counts.patch_pieces {

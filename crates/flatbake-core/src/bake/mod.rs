@@ -23,6 +23,7 @@
 //! `skipped` list with the reason, so the report says what was not
 //! simulated and why.
 
+pub mod checks;
 pub mod factors;
 pub mod light;
 pub mod lightmap;
@@ -41,7 +42,7 @@ pub use lightmap::Lightmap;
 pub use memory::MemoryEstimate;
 pub use plan::{ChannelPlan, Plan, ResponsePlan, plan_channels};
 pub use radiosity::{Solved, energy_balance};
-pub use report::{Counts, Energy, Report, Skip, Timings};
+pub use report::{Counts, Energy, Problem, Report, Skip, Timings};
 pub use responses::Responses;
 pub use scene::Scene;
 
@@ -249,6 +250,8 @@ pub struct Ctx<'a> {
     /// The preset's reach bound; 0 for an exhaustive bake, which culls no
     /// faint pairs.
     pub reach_bound: f64,
+    /// Told the fraction of the floor gathered so far, from worker threads.
+    pub gather_progress: Option<&'a (dyn Fn(f64) + Sync)>,
 }
 
 impl<'a> Ctx<'a> {
@@ -263,6 +266,7 @@ impl<'a> Ctx<'a> {
             } else {
                 settings.knobs.reach_bound
             },
+            gather_progress: None,
         }
     }
 }
@@ -274,6 +278,8 @@ pub struct Log {
     pub skipped: Vec<Skip>,
     /// Problems worth telling the user that do not stop the bake.
     pub warnings: Vec<String>,
+    /// The warnings that mean the result is probably not what was meant.
+    pub problems: Vec<Problem>,
 }
 
 impl Log {
@@ -289,6 +295,17 @@ impl Log {
     pub fn warn(&mut self, warning: impl Into<String>) {
         self.warnings.push(warning.into());
     }
+
+    /// Records a result that is probably not what was meant: among the
+    /// problems, and its message among the warnings.
+    pub fn problem(&mut self, kind: &str, message: impl Into<String>) {
+        let message = message.into();
+        self.warnings.push(message.clone());
+        self.problems.push(Problem {
+            kind: kind.into(),
+            message,
+        });
+    }
 }
 
 /// Bakes a level. `progress(stage)` is called as each stage starts
@@ -298,8 +315,22 @@ pub fn bake(
     settings: &Settings,
     progress: &dyn Fn(&str),
 ) -> Result<Baked, BakeError> {
+    bake_with_progress(level, settings, progress, &|_| {})
+}
+
+/// [`bake`], also telling `gathered(fraction)` how much of the floor the
+/// gather, usually the longest stage, has done: from worker threads, once
+/// per tile of pixels at most and only when the fraction has grown by a
+/// thousandth, so that reporting costs the gather nothing measurable.
+pub fn bake_with_progress(
+    level: &Level,
+    settings: &Settings,
+    progress: &dyn Fn(&str),
+    gathered: &(dyn Fn(f64) + Sync),
+) -> Result<Baked, BakeError> {
     let t_total = Instant::now();
-    let ctx = Ctx::new(level, settings);
+    let mut ctx = Ctx::new(level, settings);
+    ctx.gather_progress = Some(gathered);
     let mut timings = Timings::default();
     let mut log = Log {
         warnings: level.warnings.clone(),
@@ -345,6 +376,7 @@ pub fn bake(
     timed(&mut timings.gather, t);
     timed(&mut timings.total, t_total);
     lightmap::clamp(&mut assembled.lightmap, &mut log);
+    checks::lightmap(level, &assembled.lightmap.rgb, &mut log);
 
     let counts = Counts {
         edges: scene.geometry.edges.len(),

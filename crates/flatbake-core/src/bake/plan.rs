@@ -26,16 +26,11 @@ pub struct Plan {
 }
 
 impl Plan {
-    /// Plans a bake of `scene`; records what it skips, and warns about a
-    /// level with nothing to light or nothing that emits.
+    /// Plans a bake of `scene`; records what it skips, and a problem for a
+    /// level with nothing to light or nothing that emits ([`super::checks`]).
     pub fn new(ctx: &Ctx, scene: &Scene, log: &mut Log) -> Plan {
         let (level, settings) = (ctx.level, ctx.settings);
-        if scene.floor_pixels.is_empty() {
-            log.warn("the level has no floor pixels: nothing to light");
-        }
-        if !scene.has_emitters(level) {
-            log.warn("the level has no emitter pixels facing free space: the lightmap is black");
-        }
+        super::checks::level(level, scene, log);
         let channels = if settings.exhaustive {
             ChannelPlan::every_channel()
         } else {

@@ -4,6 +4,10 @@
 
 use serde::{Deserialize, Serialize};
 
+fn one() -> f64 {
+    1.0
+}
+
 /// Seconds of wall time per stage.
 #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
 pub struct Timings {
@@ -69,6 +73,19 @@ pub struct Skip {
     pub reason: String,
 }
 
+/// A result that looks like success but is probably not what was meant:
+/// no floor, nothing that gives light, a black lightmap, or a mostly
+/// clipped one. Its message, with the likely cause, is also among the
+/// report's warnings.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Problem {
+    /// What is wrong, in two or three words: "no floor", "no light",
+    /// "black" or "clipped".
+    pub kind: String,
+    /// What is wrong, the likely cause and what to do.
+    pub message: String,
+}
+
 /// The report of one baked level.
 #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
 pub struct Report {
@@ -86,6 +103,18 @@ pub struct Report {
     pub falloff: Option<f64>,
     /// The bounce series' truncation; `null` for the full solve.
     pub bounces: Option<u32>,
+    /// The exposure the PNG lightmaps were encoded with (1 for a bake in
+    /// memory, which encodes nothing).
+    #[serde(default = "one")]
+    pub exposure: f64,
+    /// Whether `exposure` was chosen from the lightmap (`--exposure auto`).
+    #[serde(default)]
+    pub exposure_auto: bool,
+    /// Fraction of the floor pixels whose PNG lightmap value is at full
+    /// scale (255 in 8 bits) in some channel: light brighter than the image
+    /// can show.
+    #[serde(default)]
+    pub clipped: f64,
     /// Sizes of the problem.
     pub counts: Counts,
     /// Seconds per stage.
@@ -102,6 +131,9 @@ pub struct Report {
     pub skipped: Vec<Skip>,
     /// Problems worth telling the user that did not stop the bake.
     pub warnings: Vec<String>,
+    /// The warnings that mean the result is probably not what was meant.
+    #[serde(default)]
+    pub problems: Vec<Problem>,
     /// Files written, relative to the output folder.
     #[serde(default)]
     pub outputs: Vec<String>,
@@ -128,6 +160,9 @@ impl Report {
             gather: settings.gather.name().into(),
             falloff: settings.falloff,
             bounces: settings.bounces,
+            exposure: 1.0,
+            exposure_auto: false,
+            clipped: 0.0,
             counts,
             timings,
             solves: solved.solves,
@@ -136,9 +171,62 @@ impl Report {
             energy: solved.energy.clone(),
             skipped: log.skipped,
             warnings: log.warnings,
+            problems: log.problems,
             outputs: vec![],
             version: env!("CARGO_PKG_VERSION").into(),
         }
+    }
+
+    /// Records `problem`: among the problems, and its message among the
+    /// warnings.
+    pub fn add_problem(&mut self, problem: Problem) {
+        self.warnings.push(problem.message.clone());
+        self.problems.push(problem);
+    }
+
+    /// What the bake left out or approximated, in a level designer's words
+    /// (the technical account is [`Report::summary`] and the `skipped` list):
+    /// only what can change what the lightmap shows, not the exact shortcuts
+    /// (a grey scene solved once for three channels, a channel without light).
+    pub fn plain_skips(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        let mut push = |s: String| {
+            if !out.contains(&s) {
+                out.push(s);
+            }
+        };
+        for s in &self.skipped {
+            match s.effect.as_str() {
+                "bounce" => push(match s.reason.as_str() {
+                    r if r.starts_with("bounces = 0") => {
+                        "bounce light (bounces = 0: direct light only)".to_string()
+                    }
+                    "no wall reflects" => "bounce light (no wall reflects light)".to_string(),
+                    _ => "bounce light (no wall that reflects is lit)".to_string(),
+                }),
+                "gather" if self.counts.unreached_pixels > 0 => push(format!(
+                    "{} floor pixel{} no light reaches (left dark)",
+                    self.counts.unreached_pixels,
+                    if self.counts.unreached_pixels == 1 {
+                        ""
+                    } else {
+                        "s"
+                    }
+                )),
+                "falloff reach" => push("very faint light far from the lamps".to_string()),
+                "distant patches" => push("fine detail of distant bounce light".to_string()),
+                _ => {}
+            }
+        }
+        if let Some(n) = self.bounces
+            && n > 0
+        {
+            push(format!(
+                "light after {n} bounce{}",
+                if n == 1 { "" } else { "s" }
+            ));
+        }
+        out
     }
 
     /// One-line human summary of what was simulated and what was skipped.

@@ -22,6 +22,7 @@ use crate::gather::Kernel;
 use crate::level::palette::Palette;
 use crate::level::{self, LoadLimits};
 use crate::output::cache::{Cache, CacheError};
+use crate::output::exposure::{self, Exposure};
 use crate::output::{self, Depth, Encoded, OutputError, OutputKind, OutputOptions, names};
 use crate::quality::Quality;
 pub use shard::{Shard, ShardError};
@@ -48,8 +49,9 @@ pub struct BatchOptions {
     pub palette: Option<PathBuf>,
     /// Truncate the bounce series; `None`: the palette's, or the full solve.
     pub bounces: Option<u32>,
-    /// Multiplies the PNG lightmaps; `None`: the palette's, or 1.
-    pub exposure: Option<f64>,
+    /// Multiplies the PNG lightmaps, or is chosen per level from its light
+    /// ([`Exposure::Auto`]); `None`: the palette's, or 1.
+    pub exposure: Option<Exposure>,
     /// Also write `NAME.lightmap.exr`.
     pub hdr: bool,
     /// Bits per channel of the PNG outputs. Default 8.
@@ -120,10 +122,18 @@ impl BatchOptions {
         settings
     }
 
-    /// How a level whose palette is `palette` is encoded.
-    pub fn output_options(&self, palette: &Palette) -> OutputOptions {
+    /// How the exposure of a level whose palette is `palette` is chosen:
+    /// the command line's, else the palette's, else 1.
+    pub fn exposure(&self, palette: &Palette) -> Exposure {
+        self.exposure
+            .or(palette.settings.exposure.map(Exposure::Fixed))
+            .unwrap_or(Exposure::Fixed(1.0))
+    }
+
+    /// How a level is encoded, at `exposure` (see [`BatchOptions::exposure()`]).
+    pub fn output_options(&self, exposure: f64) -> OutputOptions {
         OutputOptions {
-            exposure: self.exposure.or(palette.settings.exposure).unwrap_or(1.0),
+            exposure,
             depth: self.depth,
             hdr: self.hdr || self.layers,
             rgbm: self.rgbm,
@@ -198,6 +208,10 @@ pub trait Observer: Sync {
     fn level_started(&self, _path: &Path) {}
     /// A stage of a level starts ("geometry", "form factors", ...).
     fn stage(&self, _path: &Path, _stage: &str) {}
+    /// Part `done` (0 to 1) of a level's stage is done; called from worker
+    /// threads, at most about a thousand times per stage (today only the
+    /// gather reports).
+    fn fraction(&self, _path: &Path, _stage: &str, _done: f64) {}
     /// A level is finished, baked or failed.
     fn level_done(&self, _outcome: &LevelOutcome) {}
     /// Another process is writing the output folder: the batch waits for
@@ -434,6 +448,38 @@ fn bake_isolated(path: &Path, opts: &BatchOptions, observer: &dyn Observer) -> R
     })
 }
 
+/// Records the PNG lightmap's exposure and clipping in the report, and a
+/// problem when most of the floor is clipped or none of it shows.
+fn check_brightness(
+    level: &level::Level,
+    map: &bake::Lightmap,
+    opts: &BatchOptions,
+    exposure: f64,
+    report: &mut Report,
+) {
+    let auto = opts.exposure == Some(Exposure::Auto);
+    report.exposure = exposure;
+    report.exposure_auto = auto;
+    report.clipped = exposure::clipped_fraction(level, map, exposure, opts.depth);
+    if !report.problems.is_empty() {
+        return;
+    }
+    let suggestion = (!auto).then(|| exposure::auto_exposure(level, map));
+    if let Some(p) = exposure::clipping_problem(report.clipped, exposure, suggestion) {
+        report.add_problem(p);
+    } else if let Some(p) = exposure::too_dark_problem(level, map, exposure) {
+        report.add_problem(p);
+    }
+}
+
+/// The report a level's last bake into `out_dir` wrote, if it is there and
+/// readable: what an up-to-date level's warnings and times were.
+pub fn stored_report(out_dir: &Path, level: &Path) -> Option<Report> {
+    let name = OutputKind::Report.file_name(&names::level_name(level));
+    let text = std::fs::read_to_string(out_dir.join(name)).ok()?;
+    serde_json::from_str(&text).ok()
+}
+
 /// For each level, the earlier level of the batch with the same output
 /// names, if any (`a/room.png` and `b/room.png`, or `room.png` and
 /// `room.bmp`): baking both would silently overwrite the first one's
@@ -468,9 +514,12 @@ pub fn bake_one(path: &Path, opts: &BatchOptions, observer: &dyn Observer) -> Re
     let inputs = stamp::inputs(&recipe)?;
     let load = t.elapsed().as_secs_f64();
 
-    let baked = bake::bake(&level, &opts.settings(&palette), &|stage| {
-        observer.stage(path, stage)
-    })
+    let baked = bake::bake_with_progress(
+        &level,
+        &opts.settings(&palette),
+        &|stage| observer.stage(path, stage),
+        &|done| observer.fraction(path, "gather", done),
+    )
     .map_err(|source| Error::Bake {
         path: path.to_path_buf(),
         source,
@@ -480,7 +529,12 @@ pub fn bake_one(path: &Path, opts: &BatchOptions, observer: &dyn Observer) -> Re
 
     observer.stage(path, "write");
     output::ensure_output_dir(&opts.out_dir)?;
-    let out_opts = opts.output_options(&palette);
+    let exposure = match opts.exposure(&palette) {
+        Exposure::Fixed(x) => x,
+        Exposure::Auto => exposure::auto_exposure(&level, &baked.lightmap),
+    };
+    let out_opts = opts.output_options(exposure);
+    check_brightness(&level, &baked.lightmap, opts, exposure, &mut report);
     // Writing adds its own time to `write` and `total`.
     report.timings.total = t_total.elapsed().as_secs_f64();
     let start = Instant::now();

@@ -9,7 +9,7 @@ use crate::transport::kernel::Reach;
 use crate::transport::kernel::{Falloff, GatherLine, GatherPoints};
 use crate::transport::{Patches, wanted_reach};
 use crate::visibility::marks::Marks;
-use crate::visibility::{Span, TileTree, View, VisitStats, for_each_visibility};
+use crate::visibility::{Span, TileTree, View, VisitStats, for_each_visibility_counted};
 
 use super::patch_tree::node_range;
 use super::*;
@@ -106,11 +106,58 @@ pub struct GatherOptions<'a> {
     pub tolerance: f64,
     /// The components whose deviations decide what merges.
     pub decide: std::ops::Range<usize>,
+    /// Told the fraction of `pixels` gathered so far, if given.
+    pub progress: Option<OnProgress<'a>>,
+}
+
+/// A callback told the fraction (0 to 1) of a gather that is done; called
+/// from worker threads, once per tile at most, and only when the fraction
+/// has grown by at least a thousandth since the last call.
+#[derive(Clone, Copy)]
+pub struct OnProgress<'a>(pub &'a (dyn Fn(f64) + Sync));
+
+impl std::fmt::Debug for OnProgress<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("OnProgress")
+    }
+}
+
+/// Counts gathered points for an [`OnProgress`]: an atomic add per tile,
+/// and a call only when the thousandths go up.
+struct Tally<'a> {
+    hook: Option<OnProgress<'a>>,
+    total: u64,
+    done: std::sync::atomic::AtomicU64,
+    shown: std::sync::atomic::AtomicU64,
+}
+
+impl<'a> Tally<'a> {
+    fn new(hook: Option<OnProgress<'a>>, total: usize) -> Self {
+        Tally {
+            hook,
+            total: total.max(1) as u64,
+            done: Default::default(),
+            shown: Default::default(),
+        }
+    }
+
+    fn add(&self, n: usize) {
+        use std::sync::atomic::Ordering::Relaxed;
+        let Some(OnProgress(hook)) = self.hook else {
+            return;
+        };
+        let done = self.done.fetch_add(n as u64, Relaxed) + n as u64;
+        let permille = done * 1000 / self.total;
+        if self.shown.fetch_max(permille, Relaxed) < permille {
+            hook(done as f64 / self.total as f64);
+        }
+    }
 }
 
 /// Adds to `acc` the light that pixel centre `p` receives from its visible
-/// spans (all of them: the falloff reach is applied by the visibility query,
-/// [`for_each_visibility`], which passes on only the spans within reach).
+/// spans (all of them: the falloff reach is applied by the visibility
+/// query, [`for_each_visibility`](crate::visibility::for_each_visibility),
+/// which passes on only the spans within reach).
 /// Reflected light is gathered from `tree`'s nodes ([`PatchTree`]), as cut
 /// for `p`'s tile: `p` must be the centre of a pixel, since the cut's bound
 /// is taken at the tile's pixel centres.
@@ -419,6 +466,7 @@ pub fn gather(
         reach,
         tolerance,
         ref decide,
+        progress,
     } = *options;
     let k = rad.components;
     let tree = PatchTree::new(
@@ -449,13 +497,15 @@ pub fn gather(
     let shared_merged = Disjoint::new(&mut merged);
     // Edges with light, each within its reach.
     let reach2 = wanted_reach(reach, |e| rad.edge_emits[e] || rad.edge_reflects[e]);
-    let stats = for_each_visibility(
+    let tally = Tally::new(progress, pixels.len());
+    let stats = for_each_visibility_counted(
         geometry,
         &pos,
         pixels,
         &|_| View::Full,
         reach.max,
         Some(&reach2),
+        &|n| tally.add(n),
         &|i, spans| {
             // Bakes have at most three channels: no allocation per pixel.
             let mut small = [0.0; 3];

@@ -17,7 +17,8 @@ mod naive;
 mod patch_tree;
 
 pub use fast::{
-    GatherCounts, GatherOptions, Lighting, PixelScratch, floor_pixels, gather, pixel_light,
+    GatherCounts, GatherOptions, Lighting, OnProgress, PixelScratch, floor_pixels, gather,
+    pixel_light,
 };
 pub use naive::gather_naive;
 pub use patch_tree::PatchTree;

@@ -278,6 +278,7 @@ pub(super) fn classify_pixels(
         albedo,
         materials,
         warnings,
+        lossy_format: None,
     }
 }
 

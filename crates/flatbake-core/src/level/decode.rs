@@ -207,3 +207,47 @@ fn decode_message(e: ImageError, format: ImageFormat) -> ImageProblem {
         },
     }
 }
+
+/// The lossy format a level image is stored in, if it is: JPEG, or WebP
+/// whose image data is lossy (a `VP8 ` chunk rather than `VP8L`). Such
+/// images rarely hold exactly the colours that were painted. `None` for
+/// every other format and when the file cannot be read (loading reports
+/// that).
+pub fn lossy_format(path: &Path) -> Option<&'static str> {
+    let mut f = File::open(path).ok()?;
+    let mut head = [0u8; 16];
+    f.read_exact(&mut head).ok()?;
+    match image::guess_format(&head).ok()? {
+        ImageFormat::Jpeg => Some("JPEG"),
+        ImageFormat::WebP => webp_is_lossy(&mut f).then_some("WebP"),
+        _ => None,
+    }
+}
+
+/// Walks the RIFF chunks of a WebP file (positioned after its 12-byte
+/// header and the first chunk's fourcc) to the image data: lossy `VP8 `
+/// or lossless `VP8L`.
+fn webp_is_lossy(f: &mut File) -> bool {
+    use std::io::{Seek, SeekFrom};
+    if f.seek(SeekFrom::Start(12)).is_err() {
+        return false;
+    }
+    // A few chunks (VP8X, ICCP, ANIM, ALPH, ...) may come before the data.
+    for _ in 0..64 {
+        let mut chunk = [0u8; 8];
+        if f.read_exact(&mut chunk).is_err() {
+            return false;
+        }
+        match &chunk[..4] {
+            b"VP8 " => return true,
+            b"VP8L" => return false,
+            _ => {}
+        }
+        let size = u32::from_le_bytes([chunk[4], chunk[5], chunk[6], chunk[7]]) as i64;
+        // Chunks are padded to an even size.
+        if f.seek(SeekFrom::Current(size + (size & 1))).is_err() {
+            return false;
+        }
+    }
+    false
+}

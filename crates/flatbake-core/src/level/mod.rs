@@ -78,6 +78,10 @@ pub struct Level {
     pub materials: Vec<Material>,
     /// Problems worth telling the user that do not stop the bake.
     pub warnings: Vec<String>,
+    /// The lossy format the image was stored in ("JPEG", "WebP"), whose
+    /// colours are not exactly the painted ones; `None` for lossless images
+    /// and levels built in memory.
+    pub lossy_format: Option<&'static str>,
 }
 
 /// Why a level could not be loaded.
@@ -238,5 +242,17 @@ pub fn load_level(path: &Path, palette: &Palette, limits: LoadLimits) -> Result<
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default();
     let (w, h) = (img.width() as usize, img.height() as usize);
-    Ok(classify_pixels(&name, w, h, img.as_raw(), palette))
+    let mut level = classify_pixels(&name, w, h, img.as_raw(), palette);
+    if let Some(format) = decode::lossy_format(path) {
+        level.warnings.insert(
+            0,
+            format!(
+                "the image is {format}, a lossy format: compression shifts colours, so pixels \
+                 painted in a wall or lamp colour may no longer match the palette exactly (they \
+                 become floor); save levels as PNG"
+            ),
+        );
+        level.lossy_format = Some(format);
+    }
+    Ok(level)
 }

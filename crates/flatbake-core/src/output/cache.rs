@@ -33,7 +33,7 @@ pub const MAX_CACHE_BYTES: u64 = 8 << 30;
 /// First bytes of every cache file.
 pub const MAGIC: &[u8; 16] = b"flatbake-cache\n\0";
 /// Bumped whenever [`Cache`] changes shape.
-pub const FORMAT: u32 = 1;
+pub const FORMAT: u32 = 2;
 /// The flatbake version writing and reading caches.
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 
@@ -195,6 +195,7 @@ impl Cache {
             albedo: self.albedo.clone(),
             materials: self.materials.clone(),
             warnings: Vec::new(),
+            lossy_format: None,
         }
     }
 

@@ -246,6 +246,7 @@ mod tests {
                 albedo: vec![[0.0; 3]],
                 materials: names.iter().map(|n| emitter(n)).collect(),
                 warnings: vec![],
+                lossy_format: None,
             };
             let r = Responses {
                 width: 1,

@@ -12,6 +12,7 @@
 //! [`names`].
 
 pub mod cache;
+pub mod exposure;
 pub mod exr;
 pub mod files;
 pub mod image;
@@ -23,6 +24,7 @@ use std::time::Instant;
 
 use ::image::DynamicImage;
 
+pub use self::exposure::Exposure;
 pub use self::exr::{encode_exr_rgb32f, read_lightmap_exr};
 pub use self::files::{
     OutputError, StagedFile, ensure_output_dir, write_atomic, write_file_atomic,

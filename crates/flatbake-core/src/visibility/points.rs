@@ -114,6 +114,25 @@ pub fn for_each_visibility<F>(
 where
     F: Fn(usize, &[Span]) + Sync,
 {
+    for_each_visibility_counted(geometry, pos, pixel, view, reach_max, reach2, &|_| {}, f)
+}
+
+/// [`for_each_visibility`], calling `done(n)` after each leaf tile with the
+/// number of points it held, for progress reports.
+#[allow(clippy::too_many_arguments)]
+pub fn for_each_visibility_counted<F>(
+    geometry: &Geometry,
+    pos: &[[f64; 2]],
+    pixel: &[[i32; 2]],
+    view: &(dyn Fn(usize) -> View + Sync),
+    reach_max: f64,
+    reach2: Option<&[f64]>,
+    done: &(dyn Fn(usize) + Sync),
+    f: &F,
+) -> VisitStats
+where
+    F: Fn(usize, &[Span]) + Sync,
+{
     // A floor gather asks at pixel centres only: its regions cull more.
     let centres = pos
         .iter()
@@ -198,7 +217,8 @@ where
             }
             unreached.fetch_add(skipped, std::sync::atomic::Ordering::Relaxed);
             left_out.fetch_add(dropped, std::sync::atomic::Ordering::Relaxed);
-        })
+        });
+        done(grid.in_leaf(leaf.rect).len());
     });
     VisitStats {
         culled_pairs: culled_pairs + left_out.into_inner(),
