@@ -564,7 +564,7 @@ fn max_pixels_limit_is_inclusive() {
 
 fn wall_light_palette(extra: &str) -> Palette {
     let text = format!(
-        "{extra}\n[[wall]]\ncolor = \"#000000\"\nreflectance = 0.5\nname = \"stone\"\n\
+        "builtin = false\n{extra}\n[[wall]]\ncolor = \"#000000\"\nreflectance = 0.5\nname = \"stone\"\n\
          [[emitter]]\ncolor = \"#ffffff\"\nemission = 1\n"
     );
     Palette::parse(&text, Path::new("test.palette.toml")).unwrap()
@@ -572,7 +572,8 @@ fn wall_light_palette(extra: &str) -> Palette {
 
 /// 10 x 10 floor of #808080 with: a white light at (0, 0); black wall in
 /// columns 0..3 below it; an anti-aliased column x = 3 of #0a0a0a (rows 0..5)
-/// and #141414 (rows 5..10); two near-white pixels #f5f5f5.
+/// and #141414 (rows 5..10); a white light at (8, 9) with two near-white
+/// pixels #f5f5f5 beside it.
 fn antialiased() -> Vec<[u8; 4]> {
     let mut px = vec![[128, 128, 128, 255]; 100];
     for y in 0..10 {
@@ -586,6 +587,7 @@ fn antialiased() -> Vec<[u8; 4]> {
         };
     }
     px[0] = [255, 255, 255, 255];
+    px[98] = [255, 255, 255, 255];
     px[88] = [245, 245, 245, 255];
     px[99] = [245, 245, 245, 255];
     px
@@ -683,8 +685,12 @@ fn builtin_palette_warning_suggests_a_palette_file() {
 #[test]
 fn colours_far_from_solids_are_plain_floor() {
     let edge = NEAR_MISS_DISTANCE;
-    let px = [[edge, edge, edge, 255], [edge + 1, 0, 0, 255]];
-    let level = Level::from_rgba("far", 2, 1, &px, &wall_light_palette(""));
+    let px = [
+        [edge, edge, edge, 255],
+        [0, 0, 0, 255],
+        [edge + 1, 0, 0, 255],
+    ];
+    let level = Level::from_rgba("far", 3, 1, &px, &wall_light_palette(""));
     assert_eq!(
         level.warnings.len(),
         1,
@@ -697,6 +703,7 @@ fn colours_far_from_solids_are_plain_floor() {
 #[test]
 fn near_a_listed_floor_is_not_a_wall_near_miss() {
     let text = "[[wall]]\ncolor = \"#000000\"\nreflectance = 0.5\n[[floor]]\ncolor = \"#404040\"\nalbedo = 0.3\n";
+    let text = &format!("builtin = false\n{text}");
     let p = Palette::parse(text, Path::new("p.toml")).unwrap();
     let level = Level::from_rgba(
         "f",
@@ -710,7 +717,7 @@ fn near_a_listed_floor_is_not_a_wall_near_miss() {
     assert_eq!(level.albedo[1], [0.3; 3], "explicit floor albedo");
     // With a tolerance the near pixel snaps to the floor entry, albedo included.
     let p = Palette::parse(
-        &format!("[bake]\ntolerance = 16\n{text}"),
+        &format!("{text}[bake]\ntolerance = 16\n"),
         Path::new("p.toml"),
     )
     .unwrap();
