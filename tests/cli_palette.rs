@@ -38,6 +38,16 @@ fn report(out: &Path, name: &str) -> serde_json::Value {
     serde_json::from_str(&text).expect("report is JSON")
 }
 
+/// The report's warnings.
+fn warnings(r: &serde_json::Value) -> Vec<String> {
+    r["warnings"]
+        .as_array()
+        .expect("warnings")
+        .iter()
+        .filter_map(|w| w.as_str().map(str::to_string))
+        .collect()
+}
+
 /// The lightmap's sRGB pixel at `(x, y)`.
 fn light(out: &Path, name: &str, x: u32, y: u32) -> [u8; 3] {
     let img = image::open(out.join(format!("{name}.lightmap.png")))
@@ -306,4 +316,179 @@ fn colour_and_color_are_both_accepted() {
             "both `color` (line 2) and `colour`",
         ],
     );
+}
+
+/// The near-miss warning's advice: the tolerance and the palette file it
+/// names, read back from the warning.
+fn advice(w: &str) -> (u8, String) {
+    let at = w
+        .find("tolerance = ")
+        .unwrap_or_else(|| panic!("no tolerance advice: {w}"));
+    let rest = &w[at + "tolerance = ".len()..];
+    let digits: String = rest.chars().take_while(|c| c.is_ascii_digit()).collect();
+    let rest = rest[digits.len()..]
+        .strip_prefix("` in ")
+        .unwrap_or_else(|| panic!("no file after the tolerance: {w}"));
+    let file = rest.split_whitespace().next().unwrap().to_string();
+    (digits.parse().unwrap(), file)
+}
+
+/// A soft-brushed level with the built-in palette: stone walls whose edges
+/// are anti-aliased into the floor, lit by a white and a red lamp. The
+/// warning names the level's palette file; writing just what it says into
+/// that file snaps the fringe and keeps the lamps and the floor.
+#[test]
+fn soft_brush_advice_followed_word_for_word_keeps_the_lights() {
+    let dir = tempfile::tempdir().unwrap();
+    let rows = [
+        "######W#######R#####",
+        "#abcab.abcabca.bcab#",
+        "#c................a#",
+        "#b.......cba......b#",
+        "#a.......###......c#",
+        "#c.......abc......a#",
+        "#b................b#",
+        "#acbacbacbacbacbacb#",
+        "####################",
+    ];
+    let key = [
+        ('#', [0, 0, 0]),
+        ('W', [255, 255, 255]),
+        ('R', [255, 0, 0]),
+        ('a', [9, 8, 8]),
+        ('b', [16, 10, 5]),
+        ('c', [23, 7, 1]),
+    ];
+    paint(dir.path(), "brushed", &rows, &key, [0x9a, 0x8a, 0x7a]);
+    let o = flatbake_in(&["bake", "brushed.png", "-o", "out"], dir.path());
+    assert_exit(&o, EXIT_OK);
+    let r = report(&dir.path().join("out"), "brushed");
+    let ws = warnings(&r);
+    let w = ws
+        .iter()
+        .find(|w| w.contains("anti-aliasing"))
+        .unwrap_or_else(|| panic!("{ws:?}"));
+    assert!(
+        w.contains("wall #000000 (stone)") && w.contains("up to 23 steps"),
+        "{w}"
+    );
+    let (tolerance, file) = advice(w);
+    assert_eq!(
+        (tolerance, file.as_str()),
+        (23, "brushed.palette.toml"),
+        "{w}"
+    );
+    let floor_before = r["counts"]["floor_pixels"].as_u64().unwrap();
+
+    std::fs::write(
+        dir.path().join(&file),
+        format!("[bake]\ntolerance = {tolerance}\n"),
+    )
+    .unwrap();
+    let o = flatbake_in(&["bake", "brushed.png", "-o", "out"], dir.path());
+    assert_exit(&o, EXIT_OK);
+    let r = report(&dir.path().join("out"), "brushed");
+    assert!(
+        !warnings(&r)
+            .iter()
+            .any(|w| w.contains("anti-aliasing") || w.contains("no floor")),
+        "{r}"
+    );
+    assert!(
+        r["energy"]["emitted"].as_f64().unwrap() > 0.0,
+        "the lamps still shine: {r}"
+    );
+    // The fringe (and only it) became wall; the floor is lit.
+    let fringe = rows
+        .iter()
+        .flat_map(|r| r.chars())
+        .filter(|c| "abc".contains(*c))
+        .count() as u64;
+    assert_eq!(
+        r["counts"]["floor_pixels"].as_u64(),
+        Some(floor_before - fringe),
+        "{r}"
+    );
+    let p = light(&dir.path().join("out"), "brushed", 6, 3);
+    assert!(p.iter().all(|&c| c > 0), "lit floor: {p:?}");
+}
+
+/// A whole floor painted #787878, close to the palette's wall #5a5a5a, is
+/// a colour of its own, never a near miss. Real fringe pixels along the
+/// wall still are, and the tolerance suggested for them stops short of the
+/// floor colour: following it keeps every floor pixel of #787878.
+#[test]
+fn a_flat_floor_close_to_a_wall_is_not_anti_aliasing() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut rows: Vec<String> = vec!["#".repeat(90)];
+    for _ in 0..84 {
+        rows.push(format!("#{}#", ".".repeat(88)));
+    }
+    rows.push("#".repeat(90));
+    rows[0].replace_range(40..44, "LLLL");
+    let rows: Vec<&str> = rows.iter().map(String::as_str).collect();
+    let palette = "[[wall]]\ncolor = \"#5a5a5a\"\nreflectance = 0.6\n";
+    paint(
+        dir.path(),
+        "grey",
+        &rows,
+        &[('#', WALL), ('L', [255, 255, 255])],
+        [0x78; 3],
+    );
+    std::fs::write(dir.path().join("grey.palette.toml"), palette).unwrap();
+    let o = flatbake_in(&["bake", "grey.png", "-o", "out"], dir.path());
+    assert_exit(&o, EXIT_OK);
+    let r = report(&dir.path().join("out"), "grey");
+    assert!(
+        !warnings(&r).iter().any(|w| w.contains("anti-aliasing")),
+        "{r}"
+    );
+    assert_eq!(r["counts"]["floor_pixels"].as_u64(), Some(88 * 84));
+
+    // Now a soft edge along the left wall: #5e5e5e, #6a6a6a and #7a7a7a, the
+    // last one 32 steps from the wall, further than the floor colour (30).
+    let mut soft: Vec<String> = rows.iter().map(|r| r.to_string()).collect();
+    for (y, row) in soft.iter_mut().enumerate().skip(10).take(30) {
+        row.replace_range(1..2, ["a", "b", "c"][y % 3]);
+    }
+    let soft: Vec<&str> = soft.iter().map(String::as_str).collect();
+    let key = [
+        ('#', WALL),
+        ('L', [255, 255, 255]),
+        ('a', [0x5e; 3]),
+        ('b', [0x6a; 3]),
+        ('c', [0x7a; 3]),
+    ];
+    paint(dir.path(), "grey", &soft, &key, [0x78; 3]);
+    let o = flatbake_in(&["bake", "grey.png", "-o", "out"], dir.path());
+    assert_exit(&o, EXIT_OK);
+    let r = report(&dir.path().join("out"), "grey");
+    let ws = warnings(&r);
+    let w = ws
+        .iter()
+        .find(|w| w.contains("anti-aliasing"))
+        .unwrap_or_else(|| panic!("{ws:?}"));
+    assert!(
+        w.contains("30 pixels in 3 colours") && w.contains("up to 32 steps"),
+        "{w}"
+    );
+    assert!(w.contains("#787878, painted as an area of its own"), "{w}");
+    let (tolerance, file) = advice(w);
+    assert_eq!((tolerance, file.as_str()), (29, "grey.palette.toml"), "{w}");
+    std::fs::write(
+        dir.path().join(&file),
+        format!("{palette}\n[bake]\ntolerance = {tolerance}\n"),
+    )
+    .unwrap();
+    let o = flatbake_in(&["bake", "grey.png", "-o", "out"], dir.path());
+    assert_exit(&o, EXIT_OK);
+    let r = report(&dir.path().join("out"), "grey");
+    // The 20 fringe pixels within 29 steps snapped; the floor and the 10
+    // pixels of #7a7a7a stayed floor.
+    assert_eq!(
+        r["counts"]["floor_pixels"].as_u64(),
+        Some(88 * 84 - 20),
+        "{r}"
+    );
+    assert!(!warnings(&r).iter().any(|w| w.contains("no floor")), "{r}");
 }

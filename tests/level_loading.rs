@@ -682,6 +682,107 @@ fn builtin_palette_warning_suggests_a_palette_file() {
     );
 }
 
+/// A colour painted as an area of its own is floor on purpose, however
+/// close to a wall colour; so is a stray near-miss pixel away from that
+/// colour. Only pixels along the wall's edges are its fringe.
+#[test]
+fn flat_areas_and_stray_pixels_are_not_anti_aliasing() {
+    // 12 x 8: black border; floor #1e1e1e (30 steps from black) inside;
+    // a stray #050505 in the middle, far from the walls.
+    let (w, h) = (12, 8);
+    let mut px = vec![[0x1e, 0x1e, 0x1e, 255]; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            if x == 0 || y == 0 || x == w - 1 || y == h - 1 {
+                px[y * w + x] = [0, 0, 0, 255];
+            }
+        }
+    }
+    px[4 * w + 6] = [5, 5, 5, 255];
+    px[3] = [255, 255, 255, 255];
+    let level = Level::from_rgba("flat", w, h, &px, &wall_light_palette(""));
+    assert!(level.warnings.is_empty(), "{:#?}", level.warnings);
+    assert_eq!(
+        level.cells.iter().filter(|&&c| c == Cell::Floor).count(),
+        10 * 6
+    );
+    // A fringe of #0a0a0a and #140a0a along the left wall: reported, and the
+    // tolerance it suggests stops short of the floor colour.
+    for y in 1..7 {
+        px[y * w + 1] = if y % 2 == 0 {
+            [10, 10, 10, 255]
+        } else {
+            [20, 10, 10, 255]
+        };
+    }
+    px[4 * w + 6] = [5, 5, 5, 255];
+    let level = Level::from_rgba("flat", w, h, &px, &wall_light_palette(""));
+    assert_eq!(level.warnings.len(), 1, "{:#?}", level.warnings);
+    let warning = &level.warnings[0];
+    for words in [
+        "6 pixels in 2 colours",
+        "x 1..=1, y 1..=6",
+        "tolerance = 20",
+    ] {
+        assert!(warning.contains(words), "{warning:?} lacks {words:?}");
+    }
+    // A floor of #161616 (22 steps) is further than the fringe: same advice,
+    // naming the palette file.
+    for p in px.iter_mut().filter(|p| **p == [0x1e, 0x1e, 0x1e, 255]) {
+        *p = [0x16, 0x16, 0x16, 255];
+    }
+    let level = Level::from_rgba("flat", w, h, &px, &wall_light_palette(""));
+    let warning = &level.warnings[0];
+    for words in ["tolerance = 20", "test.palette.toml"] {
+        assert!(warning.contains(words), "{warning:?} lacks {words:?}");
+    }
+    // A floor of #121212 (18 steps) is nearer: the advice stops at 17, which
+    // snaps the three #0a0a0a pixels and leaves the floor and #140a0a alone.
+    px.iter_mut()
+        .filter(|p| **p == [0x16, 0x16, 0x16, 255])
+        .for_each(|p| *p = [0x12, 0x12, 0x12, 255]);
+    let level = Level::from_rgba("flat", w, h, &px, &wall_light_palette(""));
+    let warning = &level.warnings[0];
+    for words in [
+        "tolerance = 17",
+        "snap the 3 of them within 17 steps",
+        "#121212, painted as an area of its own",
+    ] {
+        assert!(warning.contains(words), "{warning:?} lacks {words:?}");
+    }
+}
+
+/// When all the floor there is would snap, the advice leaves some floor.
+#[test]
+fn near_miss_advice_never_leaves_a_level_without_floor() {
+    // A one-pixel corridor of fringe colours between black walls.
+    let row = |c: [u8; 4]| [[0, 0, 0, 255], c, [10, 10, 10, 255], c, [0, 0, 0, 255]];
+    let mut px = vec![[0, 0, 0, 255]; 5];
+    px.extend(row([20, 20, 20, 255]));
+    px.extend(vec![[0, 0, 0, 255]; 5]);
+    px[2] = [255, 255, 255, 255];
+    let level = Level::from_rgba("thin", 5, 3, &px, &wall_light_palette(""));
+    assert_eq!(level.warnings.len(), 1, "{:#?}", level.warnings);
+    let warning = &level.warnings[0];
+    for words in [
+        "3 pixels in 2 colours",
+        "tolerance = 19",
+        "snap the 1 of them within 19 steps",
+        "would leave the level no floor",
+    ] {
+        assert!(warning.contains(words), "{warning:?} lacks {words:?}");
+    }
+    // Following it leaves floor.
+    let level = Level::from_rgba(
+        "thin",
+        5,
+        3,
+        &px,
+        &wall_light_palette("[bake]\ntolerance = 19"),
+    );
+    assert_eq!(level.cells.iter().filter(|&&c| c == Cell::Floor).count(), 2);
+}
+
 #[test]
 fn colours_far_from_solids_are_plain_floor() {
     let edge = NEAR_MISS_DISTANCE;
