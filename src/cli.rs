@@ -54,7 +54,7 @@ pub enum Command {
     /// Bake levels (image files, or folders of them) into lightmaps.
     #[command(after_help = crate::flags::BAKE_EXAMPLES)]
     Bake(BakeArgs),
-    /// Show the built-in palette (or one palette file).
+    /// Show the palette a level gets (or the built-in one), or write it as a TOML file to start from.
     #[command(after_help = crate::flags::PALETTE_EXAMPLES)]
     Palette(PaletteArgs),
     /// Measure the price of accuracy: bake at every preset, time it, compare to reference.
@@ -298,12 +298,20 @@ impl From<GatherArg> for GatherMethod {
 
 #[derive(Args, Debug)]
 pub struct PaletteArgs {
+    /// Level image whose palette to show, found as `bake` finds it (NAME.palette.toml beside it,
+    /// else palette.toml in its folder, else the built-in palette).
+    #[arg(value_name = "LEVEL")]
+    pub level: Option<PathBuf>,
     /// Draw the palette as a labelled legend image.
     #[arg(long, value_name = "FILE.png")]
     pub legend: Option<PathBuf>,
-    /// Palette file to show instead of the built-in one.
+    /// Palette file to show (its colours added to the built-in ones unless it says `builtin = false`).
     #[arg(long, value_name = "FILE")]
     pub palette: Option<PathBuf>,
+    /// Write the palette as a commented TOML file to start from: to standard output, or to a new
+    /// FILE.toml.
+    #[arg(long, value_name = "FILE.toml", num_args = 0..=1, default_missing_value = "-")]
+    pub toml: Option<PathBuf>,
 }
 
 /// Parses the process arguments and runs; the whole program.
@@ -867,18 +875,56 @@ fn summary_table(outcomes: &[LevelOutcome], reports: &[Option<Report>], strict: 
 }
 
 fn palette(a: &PaletteArgs) -> u8 {
-    let pal = match &a.palette {
-        Some(p) => match flatbake_core::level::palette::Palette::load(p) {
-            Ok(p) => p,
-            Err(e) => {
-                eprintln!("flatbake: {e}");
+    use flatbake_core::level::palette::Palette;
+    if let Some(level) = &a.level {
+        // A typo must not show the built-in palette as if it were the level's.
+        match std::fs::metadata(level) {
+            Ok(m) if m.is_dir() => {
+                eprintln!(
+                    "flatbake: {}: is a folder; name one level image (each level may have its own palette)",
+                    level.display()
+                );
                 return EXIT_FAILED;
             }
+            Ok(_) => {}
+            Err(e) => {
+                let why = match e.kind() {
+                    std::io::ErrorKind::NotFound => "file not found".to_string(),
+                    _ => format!("cannot read it: {e}"),
+                };
+                eprintln!("flatbake: {}: {why}", level.display());
+                return EXIT_FAILED;
+            }
+        }
+    }
+    let resolved = match &a.level {
+        Some(level) => Palette::resolve_for_level(level, a.palette.as_deref()),
+        None => match &a.palette {
+            Some(p) => Palette::load(p),
+            None => Ok(Palette::builtin()),
         },
-        None => flatbake_core::level::palette::Palette::builtin(),
     };
-    match &a.legend {
-        Some(path) => match crate::legend::legend_png(&pal) {
+    let pal = match resolved {
+        Ok(p) => p,
+        Err(e) => {
+            eprintln!("flatbake: {e}");
+            return EXIT_FAILED;
+        }
+    };
+    let mut status = EXIT_OK;
+    match a.toml.as_deref() {
+        Some(path) if path == Path::new("-") => print!("{}", pal.to_toml()),
+        Some(path) => {
+            if let Err(why) = write_palette_toml(path, &pal) {
+                eprintln!("flatbake: {}: {why}", path.display());
+                return EXIT_FAILED;
+            }
+            eprintln!("flatbake: wrote the palette to {}", path.display());
+        }
+        None => {}
+    }
+    if let Some(path) = &a.legend {
+        status = match crate::legend::legend_png(&pal) {
             Ok(bytes) => match flatbake_core::output::write_atomic(path, &bytes) {
                 Ok(()) => {
                     eprintln!("flatbake: wrote the palette legend to {}", path.display());
@@ -893,60 +939,42 @@ fn palette(a: &PaletteArgs) -> u8 {
                 eprintln!("flatbake: cannot draw the legend: {e}");
                 EXIT_FAILED
             }
-        },
-        None => {
-            print!("{}", describe(&pal));
-            EXIT_OK
-        }
-    }
-}
-
-/// The palette as a text table.
-fn describe(p: &flatbake_core::level::palette::Palette) -> String {
-    use std::fmt::Write;
-    let fmt3 = |v: [f64; 3]| {
-        if v[0] == v[1] && v[1] == v[2] {
-            format!("{}", v[0])
-        } else {
-            format!("[{}, {}, {}]", v[0], v[1], v[2])
-        }
-    };
-    let mut out = String::new();
-    let origin = match &p.origin {
-        flatbake_core::level::palette::PaletteOrigin::BuiltIn => "built-in palette".to_string(),
-        flatbake_core::level::palette::PaletteOrigin::File(f) => f.display().to_string(),
-    };
-    let _ = writeln!(out, "{origin}");
-    for m in &p.solids {
-        let _ = match m.kind {
-            flatbake_core::level::material::MaterialKind::Wall => writeln!(
-                out,
-                "  {}  wall     reflectance {}",
-                m.hex(),
-                fmt3(m.reflectance)
-            ),
-            flatbake_core::level::material::MaterialKind::Emitter => writeln!(
-                out,
-                "  {}  emitter  emission {}  reflectance {}",
-                m.hex(),
-                fmt3(m.emission),
-                fmt3(m.reflectance)
-            ),
         };
     }
-    for f in &p.floors {
-        let _ = writeln!(
-            out,
-            "  {}  floor    albedo {}",
-            flatbake_core::level::material::hex_color(f.color),
-            fmt3(f.albedo)
+    if a.toml.is_none() && a.legend.is_none() {
+        if let Some(level) = &a.level {
+            println!("palette of {}:", level.display());
+        }
+        print!("{}", pal.table());
+    }
+    status
+}
+
+/// Writes `--toml FILE`: only to a new `.toml` file, so that a level image
+/// named after `--toml` by mistake, or a palette someone edited, is never
+/// overwritten.
+fn write_palette_toml(
+    path: &Path,
+    pal: &flatbake_core::level::palette::Palette,
+) -> Result<(), String> {
+    if path.extension().and_then(|e| e.to_str()) != Some("toml") {
+        return Err(
+            "--toml writes a .toml file; name one ending in .toml (a level to show goes before --toml)"
+                .to_string(),
         );
     }
-    let _ = writeln!(
-        out,
-        "  any other colour: floor, albedo = the colour (sRGB-decoded)"
-    );
-    out
+    match std::fs::symlink_metadata(path) {
+        Ok(_) => {
+            return Err(
+                "already exists; not overwritten (remove it first, or give --toml alone to print to standard output)"
+                    .to_string(),
+            );
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        Err(e) => return Err(format!("cannot check it: {e}")),
+    }
+    flatbake_core::output::write_atomic(path, pal.to_toml().as_bytes())
+        .map_err(|e| format!("cannot write it: {e}"))
 }
 
 /// Progress on a terminal: one bar for the batch and one line per level

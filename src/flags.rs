@@ -137,7 +137,9 @@ Examples:
 pub const PALETTE_EXAMPLES: &str = "\
 Examples:
   flatbake palette                                  # the built-in palette as a table
+  flatbake palette levels/dungeon.png               # the palette dungeon gets: each colour's source, groups, [bake]
   flatbake palette --palette levels/dungeon.palette.toml
+  flatbake palette --toml start.palette.toml        # the built-in palette as a commented file to start from
   flatbake palette --legend legend.png              # the built-in palette drawn as an image";
 
 /// The end of `flatbake sweep --help`.

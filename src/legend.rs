@@ -219,6 +219,8 @@ mod tests {
     }
 
     const GOOD: &str = r##"
+builtin = false
+
 [[wall]]
 color = "#5a5a5a"
 reflectance = 0.6
@@ -242,13 +244,16 @@ name = "sand"
 
     #[test]
     fn legend_grows_with_entries_and_is_not_blank() {
-        let small = parse("[[wall]]\ncolor = \"#000\"\nreflectance = 0.5\n");
+        let small = parse("builtin = false\n[[wall]]\ncolor = \"#000\"\nreflectance = 0.5\n");
         let big = parse(GOOD);
         let a = draw_legend(&small);
         let b = draw_legend(&big);
         assert!(b.height() > a.height(), "{} vs {}", b.height(), a.height());
         let builtin = draw_legend(&Palette::builtin());
         assert!(builtin.height() > b.height());
+        // A file without `builtin = false` adds to the built-in palette.
+        let extended = draw_legend(&parse("[[wall]]\ncolor = \"#123456\"\nreflectance = 0.5\n"));
+        assert!(extended.height() > builtin.height());
         for img in [&a, &b, &builtin] {
             let distinct: HashSet<[u8; 4]> = img.pixels().map(|p| p.0).collect();
             // Background, text anti-aliasing shades and swatches: far from blank.
@@ -270,7 +275,7 @@ name = "sand"
 
     #[test]
     fn legend_of_empty_palette_still_draws() {
-        let img = draw_legend(&parse(""));
+        let img = draw_legend(&parse("builtin = false\n"));
         assert!(img.width() > 50 && img.height() > 20);
     }
 }

@@ -39,7 +39,8 @@ fn paint(dir: &Path, name: &str, rows: &[&str], palette: Option<&str>) -> PathBu
             b'#' => [0x80, 0x80, 0x80, 255],
             b'L' => [255, 255, 255, 255],
             b'a' => [0x86, 0x7c, 0x80, 255], // anti-aliased wall grey
-            _ => [0x20, 0x20, 0x20, 255],
+            // Dark, but no built-in palette colour (#202020 is soot, a wall).
+            _ => [0x50, 0x44, 0x38, 255],
         })
     });
     let path = dir.join(format!("{name}.png"));

@@ -564,7 +564,7 @@ fn max_pixels_limit_is_inclusive() {
 
 fn wall_light_palette(extra: &str) -> Palette {
     let text = format!(
-        "{extra}\n[[wall]]\ncolor = \"#000000\"\nreflectance = 0.5\nname = \"stone\"\n\
+        "builtin = false\n{extra}\n[[wall]]\ncolor = \"#000000\"\nreflectance = 0.5\nname = \"stone\"\n\
          [[emitter]]\ncolor = \"#ffffff\"\nemission = 1\n"
     );
     Palette::parse(&text, Path::new("test.palette.toml")).unwrap()
@@ -572,7 +572,8 @@ fn wall_light_palette(extra: &str) -> Palette {
 
 /// 10 x 10 floor of #808080 with: a white light at (0, 0); black wall in
 /// columns 0..3 below it; an anti-aliased column x = 3 of #0a0a0a (rows 0..5)
-/// and #141414 (rows 5..10); two near-white pixels #f5f5f5.
+/// and #141414 (rows 5..10); a white light at (8, 9) with two near-white
+/// pixels #f5f5f5 beside it.
 fn antialiased() -> Vec<[u8; 4]> {
     let mut px = vec![[128, 128, 128, 255]; 100];
     for y in 0..10 {
@@ -586,6 +587,7 @@ fn antialiased() -> Vec<[u8; 4]> {
         };
     }
     px[0] = [255, 255, 255, 255];
+    px[98] = [255, 255, 255, 255];
     px[88] = [245, 245, 245, 255];
     px[99] = [245, 245, 245, 255];
     px
@@ -680,11 +682,116 @@ fn builtin_palette_warning_suggests_a_palette_file() {
     );
 }
 
+/// A colour painted as an area of its own is floor on purpose, however
+/// close to a wall colour; so is a stray near-miss pixel away from that
+/// colour. Only pixels along the wall's edges are its fringe.
+#[test]
+fn flat_areas_and_stray_pixels_are_not_anti_aliasing() {
+    // 12 x 8: black border; floor #1e1e1e (30 steps from black) inside;
+    // a stray #050505 in the middle, far from the walls.
+    let (w, h) = (12, 8);
+    let mut px = vec![[0x1e, 0x1e, 0x1e, 255]; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            if x == 0 || y == 0 || x == w - 1 || y == h - 1 {
+                px[y * w + x] = [0, 0, 0, 255];
+            }
+        }
+    }
+    px[4 * w + 6] = [5, 5, 5, 255];
+    px[3] = [255, 255, 255, 255];
+    let level = Level::from_rgba("flat", w, h, &px, &wall_light_palette(""));
+    assert!(level.warnings.is_empty(), "{:#?}", level.warnings);
+    assert_eq!(
+        level.cells.iter().filter(|&&c| c == Cell::Floor).count(),
+        10 * 6
+    );
+    // A fringe of #0a0a0a and #140a0a along the left wall: reported, and the
+    // tolerance it suggests stops short of the floor colour.
+    for y in 1..7 {
+        px[y * w + 1] = if y % 2 == 0 {
+            [10, 10, 10, 255]
+        } else {
+            [20, 10, 10, 255]
+        };
+    }
+    px[4 * w + 6] = [5, 5, 5, 255];
+    let level = Level::from_rgba("flat", w, h, &px, &wall_light_palette(""));
+    assert_eq!(level.warnings.len(), 1, "{:#?}", level.warnings);
+    let warning = &level.warnings[0];
+    for words in [
+        "6 pixels in 2 colours",
+        "x 1..=1, y 1..=6",
+        "tolerance = 20",
+    ] {
+        assert!(warning.contains(words), "{warning:?} lacks {words:?}");
+    }
+    // A floor of #161616 (22 steps) is further than the fringe: same advice,
+    // naming the palette file.
+    for p in px.iter_mut().filter(|p| **p == [0x1e, 0x1e, 0x1e, 255]) {
+        *p = [0x16, 0x16, 0x16, 255];
+    }
+    let level = Level::from_rgba("flat", w, h, &px, &wall_light_palette(""));
+    let warning = &level.warnings[0];
+    for words in ["tolerance = 20", "test.palette.toml"] {
+        assert!(warning.contains(words), "{warning:?} lacks {words:?}");
+    }
+    // A floor of #121212 (18 steps) is nearer: the advice stops at 17, which
+    // snaps the three #0a0a0a pixels and leaves the floor and #140a0a alone.
+    px.iter_mut()
+        .filter(|p| **p == [0x16, 0x16, 0x16, 255])
+        .for_each(|p| *p = [0x12, 0x12, 0x12, 255]);
+    let level = Level::from_rgba("flat", w, h, &px, &wall_light_palette(""));
+    let warning = &level.warnings[0];
+    for words in [
+        "tolerance = 17",
+        "snap the 3 of them within 17 steps",
+        "#121212, painted as an area of its own",
+    ] {
+        assert!(warning.contains(words), "{warning:?} lacks {words:?}");
+    }
+}
+
+/// When all the floor there is would snap, the advice leaves some floor.
+#[test]
+fn near_miss_advice_never_leaves_a_level_without_floor() {
+    // A one-pixel corridor of fringe colours between black walls.
+    let row = |c: [u8; 4]| [[0, 0, 0, 255], c, [10, 10, 10, 255], c, [0, 0, 0, 255]];
+    let mut px = vec![[0, 0, 0, 255]; 5];
+    px.extend(row([20, 20, 20, 255]));
+    px.extend(vec![[0, 0, 0, 255]; 5]);
+    px[2] = [255, 255, 255, 255];
+    let level = Level::from_rgba("thin", 5, 3, &px, &wall_light_palette(""));
+    assert_eq!(level.warnings.len(), 1, "{:#?}", level.warnings);
+    let warning = &level.warnings[0];
+    for words in [
+        "3 pixels in 2 colours",
+        "tolerance = 19",
+        "snap the 1 of them within 19 steps",
+        "would leave the level no floor",
+    ] {
+        assert!(warning.contains(words), "{warning:?} lacks {words:?}");
+    }
+    // Following it leaves floor.
+    let level = Level::from_rgba(
+        "thin",
+        5,
+        3,
+        &px,
+        &wall_light_palette("[bake]\ntolerance = 19"),
+    );
+    assert_eq!(level.cells.iter().filter(|&&c| c == Cell::Floor).count(), 2);
+}
+
 #[test]
 fn colours_far_from_solids_are_plain_floor() {
     let edge = NEAR_MISS_DISTANCE;
-    let px = [[edge, edge, edge, 255], [edge + 1, 0, 0, 255]];
-    let level = Level::from_rgba("far", 2, 1, &px, &wall_light_palette(""));
+    let px = [
+        [edge, edge, edge, 255],
+        [0, 0, 0, 255],
+        [edge + 1, 0, 0, 255],
+    ];
+    let level = Level::from_rgba("far", 3, 1, &px, &wall_light_palette(""));
     assert_eq!(
         level.warnings.len(),
         1,
@@ -697,6 +804,7 @@ fn colours_far_from_solids_are_plain_floor() {
 #[test]
 fn near_a_listed_floor_is_not_a_wall_near_miss() {
     let text = "[[wall]]\ncolor = \"#000000\"\nreflectance = 0.5\n[[floor]]\ncolor = \"#404040\"\nalbedo = 0.3\n";
+    let text = &format!("builtin = false\n{text}");
     let p = Palette::parse(text, Path::new("p.toml")).unwrap();
     let level = Level::from_rgba(
         "f",
@@ -710,7 +818,7 @@ fn near_a_listed_floor_is_not_a_wall_near_miss() {
     assert_eq!(level.albedo[1], [0.3; 3], "explicit floor albedo");
     // With a tolerance the near pixel snaps to the floor entry, albedo included.
     let p = Palette::parse(
-        &format!("[bake]\ntolerance = 16\n{text}"),
+        &format!("{text}[bake]\ntolerance = 16\n"),
         Path::new("p.toml"),
     )
     .unwrap();

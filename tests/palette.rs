@@ -72,7 +72,18 @@ fn full_palette_parses_with_lines_and_settings() {
     assert_eq!(p.settings.bounces, Some(3));
     assert_eq!(p.settings.tolerance, Some(12));
     assert_eq!(p.settings.exposure, Some(1.5));
-    assert_eq!(p.solids.len(), 3);
+    // The file's three, then the built-in ones but red light, which the
+    // file's #ff0000 replaces.
+    let builtin = Palette::builtin();
+    assert!(p.includes_builtin);
+    assert_eq!(p.solids.len(), 3 + builtin.solids.len() - 1);
+    let added: Vec<_> = builtin
+        .solids
+        .iter()
+        .filter(|m| m.color != [255, 0, 0])
+        .collect();
+    assert_eq!(p.solids[3..].iter().collect::<Vec<_>>(), added);
+    assert_eq!(p.solid_name(3), builtin.solid_name(0));
     let wall = &p.solids[0];
     assert_eq!(
         (wall.color, wall.kind, wall.reflectance, wall.line),
@@ -102,9 +113,109 @@ fn full_palette_parses_with_lines_and_settings() {
 
 #[test]
 fn empty_palette_is_all_floor() {
-    let p = parse("# nothing here\n").unwrap();
-    assert!(p.solids.is_empty() && p.floors.is_empty());
+    let p = parse("# nothing here\nbuiltin = false\n").unwrap();
+    assert!(p.solids.is_empty() && p.floors.is_empty() && !p.includes_builtin);
     assert_eq!(p.classify([0, 0, 0]), None);
+    // Without `builtin = false` an empty file is the built-in palette.
+    let p = parse("# nothing here\n").unwrap();
+    let builtin = Palette::builtin();
+    assert_eq!(
+        (&p.solids, &p.floors, &p.solid_names),
+        (&builtin.solids, &builtin.floors, &builtin.solid_names)
+    );
+    assert_eq!(p.source(ColorClass::Solid(0)), "built-in");
+    let p = parse("builtin = true\n").unwrap();
+    assert_eq!(p.solids, builtin.solids);
+}
+
+/// A file's entries are added to the built-in palette; an entry of any kind
+/// replaces the built-in entry of its colour, and `builtin = false` leaves
+/// every built-in entry out.
+#[test]
+fn a_file_extends_the_builtin_palette_colour_by_colour() {
+    let text = "[[wall]]\ncolor = \"#5a5a5a\"\nreflectance = 0.6\n\n\
+                [[wall]]\ncolor = \"#ffffff\"\nreflectance = 0.9\n\n\
+                [[floor]]\ncolor = \"#000\"\nalbedo = 0.1\n";
+    let p = parse(text).unwrap();
+    let builtin = Palette::builtin();
+    let kind = |p: &Palette, rgb: [u8; 3]| match p.classify(rgb) {
+        Some(ColorClass::Solid(i)) => Some(p.solids[i].kind),
+        _ => None,
+    };
+    // The file's wall, and the built-in lamps the file does not mention.
+    assert_eq!(kind(&p, [0x5a; 3]), Some(MaterialKind::Wall));
+    for lamp in [[255, 0, 0], [0, 255, 0], [0, 0, 255], [255, 0x80, 0]] {
+        assert_eq!(kind(&p, lamp), Some(MaterialKind::Emitter), "{lamp:?}");
+    }
+    // White is now a wall, black a floor of albedo 0.1: one entry each.
+    assert_eq!(kind(&p, [255; 3]), Some(MaterialKind::Wall));
+    assert_eq!(p.classify([0; 3]), Some(ColorClass::Floor(0)));
+    assert_eq!(p.solids.len(), 2 + builtin.solids.len() - 2);
+    assert_eq!(p.source(ColorClass::Solid(1)), "levels/x.palette.toml:6");
+    assert_eq!(p.source(ColorClass::Floor(0)), "levels/x.palette.toml:10");
+    assert_eq!(p.source(ColorClass::Solid(2)), "built-in");
+    // A duplicate within the file is still an error.
+    fails(
+        "[[wall]]\ncolor = \"#f00\"\nreflectance = 0.5\n[[emitter]]\ncolor = \"#ff0000\"\nemission = 1\n",
+        5,
+        &["duplicate colour"],
+    );
+    // builtin = false: only the file.
+    let p = parse(&format!("builtin = false\n{text}")).unwrap();
+    assert_eq!((p.solids.len(), p.floors.len()), (2, 1));
+    assert_eq!(p.classify([255, 0, 0]), None);
+    assert_eq!(p.source(ColorClass::Solid(0)), "levels/x.palette.toml:3");
+    // Its spelling is checked, and where it stands.
+    fails(
+        "builtin = 0\n",
+        1,
+        &["builtin must be true or false", "found 0"],
+    );
+    fails(
+        "[bake]\nbuiltin = false\n",
+        2,
+        &["`builtin` belongs at the top of the file"],
+    );
+}
+
+/// `palette --toml`'s text parses back to the same palette: the built-in
+/// one, and one with every kind of entry, odd numbers and odd names.
+#[test]
+fn palettes_round_trip_through_their_toml() {
+    let strip = |p: &Palette| {
+        let mut p = p.clone();
+        p.solids.iter_mut().for_each(|m| m.line = None);
+        p.floors.iter_mut().for_each(|f| f.line = None);
+        p.solid_names.resize(p.solids.len(), None);
+        (p.solids, p.floors, p.solid_names, p.settings)
+    };
+    let builtin = Palette::builtin();
+    let text = builtin.to_toml();
+    let back =
+        Palette::parse(&text, Path::new("start.toml")).unwrap_or_else(|e| panic!("{e}\n{text}"));
+    assert_eq!(strip(&back), strip(&builtin));
+    assert!(!back.includes_builtin, "the file spells every entry out");
+    assert!(
+        text.lines().filter(|l| l.starts_with('#')).count() > 5,
+        "commented:\n{text}"
+    );
+
+    let odd = parse(
+        "[bake]\nfalloff = 1e300\nbounces = 7\ntolerance = 255\nexposure = 0.1\n\
+         [[emitter]]\ncolour = \"#123456\"\nemission = [1e15, 0.30000000000000004, 0]\n\
+         reflectance = 1e-300\ngroup = \"a \\\"quoted\\\" \\\\ group\"\nname = \"é\\ttab\"\n\
+         [[floor]]\ncolor = [1, 2, 3]\nalbedo = [0, 0.5, 1]\nname = \"sand\"\n\
+         [[wall]]\ncolor = \"#fff\"\nreflectance = 0.123456789012345678\n",
+    )
+    .unwrap();
+    let text = odd.to_toml();
+    let back =
+        Palette::parse(&text, Path::new("odd.toml")).unwrap_or_else(|e| panic!("{e}\n{text}"));
+    assert_eq!(strip(&back), strip(&odd), "{text}");
+    assert_eq!(
+        back.solids[0].group.as_deref(),
+        Some("a \"quoted\" \\ group")
+    );
 }
 
 #[test]
@@ -118,12 +229,44 @@ fn colour_spellings_accepted() {
         ("[0xaa, 0xbb, 0xcc]", [0xaa, 0xbb, 0xcc]),
         ("'#0f0'", [0, 255, 0]),
     ] {
-        let p = parse(&format!(
-            "[[wall]]\ncolor = {spelling}\nreflectance = 0.5\n"
-        ))
-        .unwrap_or_else(|e| panic!("{spelling}: {e}"));
-        assert_eq!(p.solids[0].color, rgb, "{spelling}");
+        for key in ["color", "colour"] {
+            let p = parse(&format!(
+                "[[wall]]\n{key} = {spelling}\nreflectance = 0.5\n"
+            ))
+            .unwrap_or_else(|e| panic!("{key} = {spelling}: {e}"));
+            assert_eq!(p.solids[0].color, rgb, "{key} = {spelling}");
+        }
     }
+    // Every kind of entry takes both spellings.
+    for (entry, class) in [
+        (
+            "[[wall]]\ncolour = \"#0a0b0c\"\nreflectance = 0.5\n",
+            ColorClass::Solid(0),
+        ),
+        (
+            "[[emitter]]\ncolour = \"#0a0b0c\"\nemission = 1\n",
+            ColorClass::Solid(0),
+        ),
+        (
+            "[[floor]]\ncolour = \"#0a0b0c\"\nalbedo = 0.5\n",
+            ColorClass::Floor(0),
+        ),
+    ] {
+        let p = parse(entry).unwrap_or_else(|e| panic!("{entry}: {e}"));
+        assert_eq!(p.classify([10, 11, 12]), Some(class), "{entry}");
+    }
+    // Both in one entry: say so, with both lines.
+    fails(
+        "[[wall]]\ncolour = \"#000\"\ncolor = \"#000\"\nreflectance = 0.5\n",
+        3,
+        &["both `colour` (line 2) and `color`"],
+    );
+    // Messages about the value name the spelling used.
+    fails(
+        "[[wall]]\ncolour = \"red\"\nreflectance = 0.5\n",
+        2,
+        &["colour \"red\" is not a colour"],
+    );
 }
 
 #[test]
@@ -181,9 +324,9 @@ fn toml_syntax_error_names_its_line() {
 #[test]
 fn unknown_keys_are_reported_not_ignored() {
     fails(
-        "[[wall]]\ncolour = \"#000000\"\nreflectance = 0.5\n",
+        "[[wall]]\ncolr = \"#000000\"\nreflectance = 0.5\n",
         2,
-        &["unknown key `colour` in [[wall]] (expected color, reflectance, name)"],
+        &["unknown key `colr` in [[wall]] (expected color (or colour), reflectance, name)"],
     );
     fails(
         "[[emitter]]\ncolor = \"#fff\"\nemission = 1\nalbedo = 0.5\n",
@@ -361,7 +504,7 @@ fn missing_required_keys() {
     fails(
         "\n[[wall]]\nreflectance = 0.5\n",
         2,
-        &["[[wall]] entry has no `color`"],
+        &["[[wall]] entry has no `color` (or `colour`)"],
     );
     fails(
         "[[wall]]\ncolor = \"#123456\"\n",

@@ -87,12 +87,23 @@ pub fn inputs(recipe: &Recipe) -> Result<Inputs> {
             h.update(b"\0palette\0built-in");
         }
     }
+    hash_builtin(&mut h, &Palette::builtin());
     h.update(b"\0settings\0");
     h.update(recipe.settings.as_bytes());
     Ok(Inputs {
         image_hash,
         key: h.finalize().to_hex().to_string(),
     })
+}
+
+/// A palette file's entries are added to the built-in palette, so the
+/// palette a level gets depends on the built-in entries too: hash them (as
+/// their TOML spelling, which holds every number exactly), with the rule
+/// that combines them, so a change to either means a re-bake even when the
+/// file's bytes are the same.
+fn hash_builtin(h: &mut blake3::Hasher, builtin: &Palette) {
+    h.update(b"\0a palette file extends\0");
+    h.update(builtin.to_toml().as_bytes());
 }
 
 /// The stamp file of `recipe`'s level in `out_dir`.
@@ -165,4 +176,41 @@ pub fn write(
     })?;
     json.push(b'\n');
     crate::output::write_file_atomic(&path, &json)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn key(builtin: &Palette) -> String {
+        let mut h = blake3::Hasher::new();
+        hash_builtin(&mut h, builtin);
+        h.finalize().to_hex().to_string()
+    }
+
+    /// Any change to a built-in entry, even one far below the precision
+    /// of a message, changes the key: levels whose palette file extends
+    /// the built-in palette are baked again.
+    #[test]
+    fn the_key_follows_every_built_in_entry() {
+        let builtin = Palette::builtin();
+        let base = key(&builtin);
+        assert_eq!(base, key(&Palette::builtin()), "deterministic");
+        let mut emission = builtin.clone();
+        emission.solids[6].emission[1] *= 1.0 + 1e-15;
+        let mut kind = builtin.clone();
+        kind.solids[0].kind = crate::level::material::MaterialKind::Emitter;
+        let mut gone = builtin.clone();
+        gone.solids.pop();
+        let mut name = builtin.clone();
+        name.solid_names[3] = Some("brick".into());
+        for (what, changed) in [
+            ("emission", emission),
+            ("kind", kind),
+            ("entry", gone),
+            ("name", name),
+        ] {
+            assert_ne!(base, key(&changed), "{what}");
+        }
+    }
 }

@@ -3,10 +3,11 @@
 
 use std::collections::{BTreeMap, HashMap};
 use std::hash::{BuildHasherDefault, Hasher};
+use std::path::Path;
 
 use crate::level::material::{Material, MaterialKind, srgb_to_linear};
 use crate::level::palette::{ColorClass, Palette, PaletteOrigin};
-use crate::level::{Cell, Level, NEAR_MISS_DISTANCE};
+use crate::level::{Cell, FRINGE_REACH, Level, NEAR_MISS_DISTANCE};
 
 /// How one distinct colour resolves; computed once per colour and cached.
 #[derive(Clone, Copy, Debug)]
@@ -195,12 +196,15 @@ fn checked_size(
 }
 
 /// Classifies `rgba` (row-major, 4 bytes per pixel) with `palette`.
+/// `palette_file` is the file the near-miss advice names when the palette
+/// is the built-in one (the level's `NAME.palette.toml`).
 pub(super) fn classify_pixels(
     name: &str,
     width: usize,
     height: usize,
     rgba: &[u8],
     palette: &Palette,
+    palette_file: Option<&Path>,
 ) -> Level {
     let mut warnings = Vec::new();
     let (width, height) = checked_size(width, height, rgba.len() / 4, &mut warnings);
@@ -209,7 +213,9 @@ pub(super) fn classify_pixels(
     let lut: [f32; 256] = std::array::from_fn(|c| srgb_to_linear(c as u8) as f32);
     let mut cache: HashMap<u32, Resolved, BuildHasherDefault<ColorHasher>> = HashMap::default();
     let mut slots = Slots::new(palette.solids.len());
-    let mut near: BTreeMap<usize, NearMisses> = BTreeMap::new();
+    // Pixels (indices) of colours near a wall or emitter colour, in raster
+    // order; whether they are an anti-aliased fringe is decided below.
+    let mut near_px: Vec<usize> = Vec::new();
 
     let mut cells = Vec::with_capacity(n);
     let mut albedo = Vec::with_capacity(n);
@@ -224,31 +230,22 @@ pub(super) fn classify_pixels(
             continue;
         }
         let key = u32::from_le_bytes([px[0], px[1], px[2], 0]);
-        let (resolved, first_time) = match last {
-            Some((k, r)) if k == key => (r, false),
+        let resolved = match last {
+            Some((k, r)) if k == key => r,
             _ => {
-                let mut first_time = false;
-                let r = *cache.entry(key).or_insert_with(|| {
-                    first_time = true;
-                    resolve(palette, [px[0], px[1], px[2]], &lut)
-                });
+                let r = *cache
+                    .entry(key)
+                    .or_insert_with(|| resolve(palette, [px[0], px[1], px[2]], &lut));
                 last = Some((key, r));
-                (r, first_time)
+                r
             }
         };
         let (cell, a) = match resolved {
             // A solid beyond the slots a cell can index is floor.
             Resolved::Solid(p) => (slots.of(p).map_or(Cell::Floor, Cell::Solid), [0.0; 3]),
             Resolved::Floor(a) => (Cell::Floor, a),
-            Resolved::NearMiss {
-                solid,
-                diff,
-                albedo: a,
-            } => {
-                let (x, y) = (i % width, i / width);
-                near.entry(solid)
-                    .or_insert_with(|| NearMisses::at(x, y, [px[0], px[1], px[2]]))
-                    .record((x, y), diff, first_time);
+            Resolved::NearMiss { albedo: a, .. } => {
+                near_px.push(i);
                 (Cell::Floor, a)
             }
         };
@@ -266,8 +263,19 @@ pub(super) fn classify_pixels(
     }
     let materials = slots.into_palette_order(&mut cells, palette);
 
-    for (&solid, m) in &near {
-        warnings.push(near_miss_warning(palette, name, solid, m));
+    if !near_px.is_empty() {
+        let image = Image {
+            width,
+            height,
+            rgba,
+            cells: &cells,
+            materials: &materials,
+        };
+        let near = fringes(&image, palette, &cache, &near_px);
+        let advice = Advice::new(name, palette, palette_file);
+        for (&solid, m) in &near.by_solid {
+            warnings.push(near_miss_warning(palette, &advice, &near, solid, m));
+        }
     }
 
     Level {
@@ -282,7 +290,211 @@ pub(super) fn classify_pixels(
     }
 }
 
-fn near_miss_warning(palette: &Palette, level: &str, solid: usize, m: &NearMisses) -> String {
+/// What the fringe analysis reads.
+struct Image<'a> {
+    width: usize,
+    height: usize,
+    rgba: &'a [u8],
+    cells: &'a [Cell],
+    materials: &'a [Material],
+}
+
+impl Image<'_> {
+    /// The opaque colour of pixel `i` as a cache key; `None` for void.
+    fn key(&self, i: usize) -> Option<u32> {
+        let p = self.rgba.get(4 * i..4 * i + 4)?;
+        (p[3] != 0).then(|| u32::from_le_bytes([p[0], p[1], p[2], 0]))
+    }
+
+    /// Pixel `i`'s four neighbours all exist and have its colour.
+    fn interior(&self, i: usize, key: u32) -> bool {
+        let (x, y) = (i % self.width, i / self.width);
+        x > 0
+            && y > 0
+            && x + 1 < self.width
+            && y + 1 < self.height
+            && [i - 1, i + 1, i - self.width, i + self.width]
+                .iter()
+                .all(|&j| self.key(j) == Some(key))
+    }
+
+    /// Some pixel within [`FRINGE_REACH`] of pixel `i` is solid of `color`.
+    fn touches(&self, i: usize, color: [u8; 3]) -> bool {
+        let (x, y) = (i % self.width, i / self.width);
+        let r = FRINGE_REACH;
+        (y.saturating_sub(r)..(y + r + 1).min(self.height)).any(|yy| {
+            (x.saturating_sub(r)..(x + r + 1).min(self.width)).any(|xx| {
+                matches!(self.cells[yy * self.width + xx],
+                    Cell::Solid(s) if self.materials.get(s as usize).is_some_and(|m| m.color == color))
+            })
+        })
+    }
+}
+
+/// One near-miss colour: how many pixels, how many of them inside a flat
+/// area of that colour, and which palette solid it is near.
+struct NearColour {
+    rgb: [u8; 3],
+    pixels: u64,
+    interior: u64,
+    solid: usize,
+    diff: u8,
+    /// How many of its pixels are part of a fringe.
+    fringe: u64,
+}
+
+impl NearColour {
+    /// Painted on purpose as an area of its own: at least a quarter of its
+    /// pixels have all four neighbours of the same colour. An anti-aliased
+    /// edge changes shade from one pixel to the next across the edge, so
+    /// its pixels (almost) never do.
+    fn flat(&self) -> bool {
+        self.interior > 0 && self.interior * 4 >= self.pixels
+    }
+}
+
+/// The near-miss analysis of a level.
+struct Fringes {
+    /// Near-miss colours by cache key.
+    colours: HashMap<u32, NearColour, BuildHasherDefault<ColorHasher>>,
+    /// Fringe pixels per palette solid.
+    by_solid: BTreeMap<usize, NearMisses>,
+    /// Floor pixels of the level as classified.
+    floor_pixels: u64,
+}
+
+/// Finds the anti-aliased fringes among the near-miss pixels `near_px`: a
+/// near-miss pixel is a fringe pixel when its colour is not a flat area of
+/// its own ([`NearColour::flat`]) and a pixel of the wall or emitter colour
+/// it is near lies within [`FRINGE_REACH`]. Flat areas (a floor painted a
+/// shade close to a wall, on purpose) and stray pixels far from that colour
+/// are plain floor and say nothing.
+fn fringes(
+    image: &Image,
+    palette: &Palette,
+    cache: &HashMap<u32, Resolved, BuildHasherDefault<ColorHasher>>,
+    near_px: &[usize],
+) -> Fringes {
+    let mut colours: HashMap<u32, NearColour, BuildHasherDefault<ColorHasher>> = HashMap::default();
+    for &i in near_px {
+        let Some(key) = image.key(i) else { continue };
+        let Some(&Resolved::NearMiss { solid, diff, .. }) = cache.get(&key) else {
+            continue;
+        };
+        let c = colours.entry(key).or_insert_with(|| NearColour {
+            rgb: key.to_le_bytes()[..3].try_into().unwrap_or([0; 3]),
+            pixels: 0,
+            interior: 0,
+            solid,
+            diff,
+            fringe: 0,
+        });
+        c.pixels += 1;
+        c.interior += image.interior(i, key) as u64;
+    }
+    let mut by_solid: BTreeMap<usize, NearMisses> = BTreeMap::new();
+    for &i in near_px {
+        let Some(key) = image.key(i) else { continue };
+        let Some(c) = colours.get_mut(&key) else {
+            continue;
+        };
+        let Some(solid_color) = palette.solids.get(c.solid).map(|m| m.color) else {
+            continue;
+        };
+        if c.flat() || !image.touches(i, solid_color) {
+            continue;
+        }
+        let (x, y) = (i % image.width, i / image.width);
+        let first_time = c.fringe == 0;
+        c.fringe += 1;
+        by_solid
+            .entry(c.solid)
+            .or_insert_with(|| NearMisses::at(x, y, c.rgb))
+            .record((x, y), c.diff, first_time);
+    }
+    let floor_pixels = image.cells.iter().filter(|&&c| c == Cell::Floor).count() as u64;
+    Fringes {
+        colours,
+        by_solid,
+        floor_pixels,
+    }
+}
+
+impl Fringes {
+    /// The largest tolerance up to `wanted` that is safe to suggest: it
+    /// snaps no flat area's colour to a wall or emitter and leaves floor
+    /// pixels. Returns it with the flat colour that limited it, if one did.
+    fn safe_tolerance(&self, wanted: u8) -> (u8, Option<[u8; 3]>) {
+        let mut t = wanted;
+        let mut limit = None;
+        for c in self.colours.values().filter(|c| c.flat()) {
+            if c.diff <= t {
+                t = c.diff.saturating_sub(1);
+                limit = Some(c.rgb);
+            }
+        }
+        // Whatever else snaps, some floor must stay floor.
+        while t > 0 && self.snapped(t) >= self.floor_pixels {
+            t -= 1;
+        }
+        (t, limit)
+    }
+
+    /// Floor pixels that `tolerance` turns into walls or emitters: every
+    /// near-miss colour at most `tolerance` steps from its solid (the
+    /// nearest palette colour within the tolerance is the one within
+    /// the near-miss distance, when it is that close).
+    fn snapped(&self, tolerance: u8) -> u64 {
+        self.colours
+            .values()
+            .filter(|c| c.diff <= tolerance)
+            .map(|c| c.pixels)
+            .sum()
+    }
+
+    /// Fringe pixels of `solid` within `tolerance` steps.
+    fn fringe_within(&self, solid: usize, tolerance: u8) -> u64 {
+        self.colours
+            .values()
+            .filter(|c| c.solid == solid && c.diff <= tolerance)
+            .map(|c| c.fringe)
+            .sum()
+    }
+}
+
+/// Where the near-miss advice tells the designer to set the tolerance.
+struct Advice {
+    /// The palette file, as the designer would name it.
+    file: String,
+    /// The file serves other levels too (a folder's `palette.toml`, or
+    /// `--palette`).
+    shared: bool,
+}
+
+impl Advice {
+    fn new(level: &str, palette: &Palette, palette_file: Option<&Path>) -> Advice {
+        let shown = crate::level::palette::shown_path;
+        match &palette.origin {
+            PaletteOrigin::File(p) => Advice {
+                file: shown(p),
+                shared: p.file_name().and_then(|f| f.to_str())
+                    != Some(&format!("{level}.palette.toml")),
+            },
+            PaletteOrigin::BuiltIn => Advice {
+                file: palette_file.map_or_else(|| format!("{level}.palette.toml"), shown),
+                shared: false,
+            },
+        }
+    }
+}
+
+fn near_miss_warning(
+    palette: &Palette,
+    advice: &Advice,
+    near: &Fringes,
+    solid: usize,
+    m: &NearMisses,
+) -> String {
     let what = palette.describe(ColorClass::Solid(solid));
     let kind = match palette.solids.get(solid).map(|s| s.kind) {
         Some(MaterialKind::Emitter) => "emitter",
@@ -296,19 +508,50 @@ fn near_miss_warning(palette: &Palette, level: &str, solid: usize, m: &NearMisse
         }
     };
     let (x, y, c) = m.example;
-    let fix = match palette.settings.tolerance {
-        Some(t) if t > 0 => format!("raise `[bake] tolerance` from {t} to {}", m.max_diff),
-        _ => format!("set `[bake] tolerance = {}`", m.max_diff),
+    let current = palette.settings.tolerance.unwrap_or(0);
+    let (t, limit) = near.safe_tolerance(m.max_diff);
+    let set = if current > 0 {
+        format!("raise `[bake] tolerance` from {current} to {t}")
+    } else {
+        format!("set `[bake] tolerance = {t}`")
     };
-    let where_ = match palette.origin {
-        PaletteOrigin::BuiltIn => format!(" in a palette file (e.g. {level}.palette.toml)"),
-        PaletteOrigin::File(_) => " in the palette".to_string(),
+    let file = &advice.file;
+    let shared = if advice.shared {
+        " (every level that uses that palette gets it)"
+    } else {
+        ""
+    };
+    let fix = if t <= current {
+        match limit {
+            Some(c) => format!(
+                ". A larger tolerance cannot snap them: it would also snap {}, painted as an \
+                 area of its own, to a wall or light",
+                crate::level::material::hex_color(c)
+            ),
+            None => ". A larger tolerance cannot snap them without leaving the level no floor"
+                .to_string(),
+        }
+    } else if t >= m.max_diff {
+        format!(", or {set} in {file}{shared} to snap them to the nearest palette colour")
+    } else {
+        let why = match limit {
+            Some(c) => format!(
+                "would also snap {}, painted as an area of its own",
+                crate::level::material::hex_color(c)
+            ),
+            None => "would leave the level no floor".to_string(),
+        };
+        format!(
+            ", or {set} in {file}{shared} to snap the {} of them within {t} steps (a larger \
+             tolerance {why})",
+            near.fringe_within(solid, t)
+        )
     };
     format!(
-        "{} in {} are close to {what} but not exactly that colour, probably anti-aliasing \
-         (e.g. {} at ({x}, {y}); all within x {}..={}, y {}..={}; up to {} steps off per channel); \
-         they are treated as floor, not {kind}. Paint with hard edges (no anti-aliasing), or {fix}{where_} \
-         to snap them to the nearest palette colour",
+        "{} in {} along the edges of {what} are close to that colour but not exactly it, \
+         probably anti-aliasing (e.g. {} at ({x}, {y}); all within x {}..={}, y {}..={}; up to {} \
+         steps off per channel); they are treated as floor, not {kind}. Paint with hard edges \
+         (no anti-aliasing){fix}",
         plural(m.pixels, "pixel"),
         plural(m.colors, "colour"),
         crate::level::material::hex_color(c),

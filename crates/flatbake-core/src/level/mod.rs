@@ -5,10 +5,11 @@
 //! trust before spending memory on it (the header's dimensions are checked
 //! against [`LoadLimits`] before any pixel is decoded), and every failure
 //! names the file and says what is wrong with it in words a level designer
-//! understands. Pixels that are *almost* a wall or emitter colour — the
-//! anti-aliasing most paint programs add by default — are reported as one
-//! warning per palette colour, or snapped to it when the palette sets
-//! `[bake] tolerance`.
+//! understands. Pixels that are *almost* a wall or emitter colour along its
+//! edges — the anti-aliasing most paint programs add by default — are
+//! reported as one warning per palette colour, or snapped to it when the
+//! palette sets `[bake] tolerance`; a colour painted as an area of its own is
+//! floor on purpose and is never reported.
 
 mod classify;
 mod decode;
@@ -209,6 +210,12 @@ pub enum ImageProblem {
 /// are merely in the same family.
 pub const NEAR_MISS_DISTANCE: u8 = 40;
 
+/// How far (in pixels, in any direction) a near-miss pixel may lie from a
+/// pixel of the wall or emitter colour it is near and still count as that
+/// colour's anti-aliased fringe: a soft brush's edge is one to two pixels
+/// wide. Near-miss colours painted as areas of their own are never a fringe.
+pub const FRINGE_REACH: usize = 2;
+
 impl Level {
     /// The cell of pixel `(x, y)`, which must lie inside the level.
     pub fn cell(&self, x: usize, y: usize) -> Cell {
@@ -228,7 +235,7 @@ impl Level {
         rgba: &[[u8; 4]],
         palette: &Palette,
     ) -> Level {
-        classify_pixels(name, width, height, rgba.as_flattened(), palette)
+        classify_pixels(name, width, height, rgba.as_flattened(), palette, None)
     }
 }
 
@@ -242,7 +249,10 @@ pub fn load_level(path: &Path, palette: &Palette, limits: LoadLimits) -> Result<
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default();
     let (w, h) = (img.width() as usize, img.height() as usize);
-    let mut level = classify_pixels(&name, w, h, img.as_raw(), palette);
+    // With the built-in palette, near-miss advice names the file that would
+    // add to it: NAME.palette.toml beside the image.
+    let [named, _] = Palette::candidate_paths(path);
+    let mut level = classify_pixels(&name, w, h, img.as_raw(), palette, Some(&named));
     if let Some(format) = decode::lossy_format(path) {
         level.warnings.insert(
             0,

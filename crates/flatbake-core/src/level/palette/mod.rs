@@ -1,7 +1,9 @@
 //! Palettes: which painted colour is which material (docs/transport.md#palette-and-materials).
 //!
 //! A palette is TOML text with an optional `[bake]` table and `[[wall]]`,
-//! `[[emitter]]` and `[[floor]]` entries. [`Palette::parse`] checks it
+//! `[[emitter]]` and `[[floor]]` entries, which are added to the built-in
+//! palette (an entry overrides the built-in entry of its colour) unless the
+//! file starts with `builtin = false`. [`Palette::parse`] checks it
 //! completely — unknown keys, wrong types, out-of-range numbers, duplicate
 //! colours — and every error names the file and the 1-based line, because a
 //! level designer fixes palettes by hand. [`Palette::resolve_for_level`]
@@ -21,6 +23,7 @@ use crate::level::material::{Material, MaterialKind, Rgb, hex_color};
 use parse::Parser;
 
 mod parse;
+mod text;
 
 /// Where a palette came from.
 #[derive(Clone, Debug, PartialEq)]
@@ -81,6 +84,11 @@ pub struct Palette {
     /// than `solids` (palettes built in code need not name anything); use
     /// [`Palette::solid_name`] to read it.
     pub solid_names: Vec<Option<String>>,
+    /// The built-in entries whose colours the file does not list are part of
+    /// this palette (after the file's own entries): true for the built-in
+    /// palette and for a file without `builtin = false`. Built-in entries
+    /// have no `line`.
+    pub includes_builtin: bool,
 }
 
 /// A palette problem, located in its file.
@@ -117,6 +125,7 @@ impl Palette {
             floors: Vec::new(),
             settings: PaletteSettings::default(),
             solid_names: Vec::new(),
+            includes_builtin: false,
         }
     }
 
@@ -197,10 +206,14 @@ impl Palette {
             floors: vec![],
             settings: PaletteSettings::default(),
             solid_names,
+            includes_builtin: true,
         }
     }
 
-    /// Parses palette text; `path` is used in messages.
+    /// Parses palette text into the palette a level gets from it: the
+    /// file's entries, then (unless the file says `builtin = false`) the
+    /// built-in entries of every colour the file does not list. `path` is
+    /// used in messages.
     pub fn parse(text: &str, path: &Path) -> Result<Palette, PaletteError> {
         Parser { text, path }.parse()
     }
@@ -255,6 +268,20 @@ impl Palette {
             }
         }
         Ok(Palette::builtin())
+    }
+
+    /// Where the entry of `class` comes from: `built-in`, or the palette
+    /// file and the line of its colour (`levels/cave.palette.toml:12`).
+    pub fn source(&self, class: ColorClass) -> String {
+        let line = match class {
+            ColorClass::Solid(i) => self.solids.get(i).and_then(|m| m.line),
+            ColorClass::Floor(i) => self.floors.get(i).and_then(|f| f.line),
+        };
+        match (&self.origin, line) {
+            (PaletteOrigin::File(p), Some(l)) => format!("{}:{l}", shown_path(p)),
+            (PaletteOrigin::File(p), None) if !self.includes_builtin => shown_path(p),
+            _ => "built-in".to_string(),
+        }
     }
 
     /// The `name` of solid entry `i`, if it has one.
@@ -323,6 +350,12 @@ impl Palette {
             None => format!("{kind} {}", hex_color(color)),
         }
     }
+}
+
+/// A palette path as messages show it: without the `./` that the lookup
+/// beside a level in the current folder puts in front.
+pub fn shown_path(p: &Path) -> String {
+    p.strip_prefix(".").unwrap_or(p).display().to_string()
 }
 
 /// `wall` / `emitter`, as written in palette files.

@@ -21,9 +21,15 @@ impl EntryKind {
     }
     fn keys(self) -> &'static [&'static str] {
         match self {
-            EntryKind::Wall => &["color", "reflectance", "name"],
-            EntryKind::Emitter => &["color", "emission", "reflectance", "group", "name"],
-            EntryKind::Floor => &["color", "albedo", "name"],
+            EntryKind::Wall => &["color (or colour)", "reflectance", "name"],
+            EntryKind::Emitter => &[
+                "color (or colour)",
+                "emission",
+                "reflectance",
+                "group",
+                "name",
+            ],
+            EntryKind::Floor => &["color (or colour)", "albedo", "name"],
         }
     }
 }
@@ -64,6 +70,10 @@ impl<'a> Parser<'a> {
     pub(super) fn parse(&self) -> Fail<Palette> {
         let doc = DeTable::parse(self.text).map_err(|e| self.syntax_error(&e))?;
         let mut palette = Palette::empty(PaletteOrigin::File(self.path.to_path_buf()));
+        // `builtin = false` starts from an empty palette; by default the
+        // file's entries are added to the built-in ones.
+        let mut builtin: Option<Range<usize>> = None;
+        palette.includes_builtin = true;
 
         // Entries of all three kinds in file order, so the first problem
         // reported is the first one in the file and duplicates name the
@@ -77,6 +87,21 @@ impl<'a> Parser<'a> {
                     palette.settings = self.bake(key, value)?;
                     continue;
                 }
+                "builtin" => {
+                    let DeValue::Boolean(b) = value.get_ref() else {
+                        return Err(self.err(
+                            &value.span(),
+                            format!(
+                                "builtin must be true or false, found {} (false: only this file's colours; \
+                                 true, the default: this file's colours added to the built-in palette)",
+                                self.src(&value.span())
+                            ),
+                        ));
+                    };
+                    palette.includes_builtin = *b;
+                    builtin = Some(key.span());
+                    continue;
+                }
                 "wall" => EntryKind::Wall,
                 "emitter" => EntryKind::Emitter,
                 "floor" => EntryKind::Floor,
@@ -85,7 +110,7 @@ impl<'a> Parser<'a> {
                         &key.span(),
                         format!(
                             "unknown key `{other}` at the top level \
-                             (expected [bake], [[wall]], [[emitter]], [[floor]])"
+                             (expected builtin, [bake], [[wall]], [[emitter]], [[floor]])"
                         ),
                     ));
                 }
@@ -150,7 +175,52 @@ impl<'a> Parser<'a> {
                 }),
             }
         }
+        if palette.includes_builtin {
+            self.add_builtin(&mut palette, builtin)?;
+        }
         Ok(palette)
+    }
+
+    /// Adds the built-in entries whose colours the file does not list (a
+    /// file's entry of any kind overrides the built-in entry of its colour).
+    fn add_builtin(&self, palette: &mut Palette, key: Option<Range<usize>>) -> Fail<()> {
+        let builtin = Palette::builtin();
+        let listed: std::collections::HashSet<[u8; 3]> = palette
+            .solids
+            .iter()
+            .map(|m| m.color)
+            .chain(palette.floors.iter().map(|f| f.color))
+            .collect();
+        palette.solid_names.resize(palette.solids.len(), None);
+        for (i, m) in builtin.solids.iter().enumerate() {
+            if listed.contains(&m.color) {
+                continue;
+            }
+            if palette.solids.len() >= MAX_SOLIDS {
+                let message = format!(
+                    "too many walls and emitters with the built-in ones (at most {MAX_SOLIDS}); \
+                     `builtin = false` at the top of the file leaves the built-in palette out"
+                );
+                return Err(match key {
+                    Some(span) => self.err(&span, message),
+                    None => PaletteError {
+                        path: self.path.to_path_buf(),
+                        line: None,
+                        message,
+                    },
+                });
+            }
+            palette.solids.push(m.clone());
+            palette
+                .solid_names
+                .push(builtin.solid_name(i).map(str::to_string));
+        }
+        for f in &builtin.floors {
+            if !listed.contains(&f.color) {
+                palette.floors.push(f.clone());
+            }
+        }
+        Ok(())
     }
 
     fn syntax_error(&self, e: &toml::de::Error) -> PaletteError {
@@ -253,6 +323,13 @@ impl<'a> Parser<'a> {
                     })?;
                     s.tolerance = Some(n);
                 }
+                "builtin" => {
+                    return Err(self.err(
+                        &k.span(),
+                        "`builtin` belongs at the top of the file, before [bake] and every entry \
+                         (a key below a [table] header is part of that table)",
+                    ));
+                }
                 other => return Err(self.unknown_key(k, other, "[bake]", BAKE_KEYS)),
             }
         }
@@ -313,11 +390,30 @@ impl<'a> Parser<'a> {
                 ),
             ));
         };
-        let mut color: Option<([u8; 3], Range<usize>)> = None;
+        let mut color: Option<([u8; 3], Range<usize>, &str)> = None;
         let mut out = ParsedEntry::default();
         for (k, v) in sorted(table) {
             match k.get_ref().as_ref() {
-                "color" => color = Some((self.color(v)?, v.span())),
+                // Both spellings: the messages say "colour", the TOML
+                // convention says "color".
+                spelling @ ("color" | "colour") => {
+                    if let Some((_, first, first_spelling)) = &color {
+                        return Err(self.err(
+                            &k.span(),
+                            format!(
+                                "{header} entry has both `{first_spelling}` (line {}) and `{spelling}`; \
+                                 give its colour once",
+                                self.line_of(first)
+                            ),
+                        ));
+                    }
+                    let spelling = if spelling == "color" {
+                        "color"
+                    } else {
+                        "colour"
+                    };
+                    color = Some((self.color(spelling, v)?, v.span(), spelling));
+                }
                 "reflectance" if kind != EntryKind::Floor => {
                     out.reflectance = Some(self.rgb("reflectance", v, Bounds::Unit)?)
                 }
@@ -341,8 +437,11 @@ impl<'a> Parser<'a> {
                 other => return Err(self.unknown_key(k, other, header, kind.keys())),
             }
         }
-        let Some((rgb, color_span)) = color else {
-            return Err(self.err(&entry.span(), format!("{header} entry has no `color`")));
+        let Some((rgb, color_span, _)) = color else {
+            return Err(self.err(
+                &entry.span(),
+                format!("{header} entry has no `color` (or `colour`)"),
+            ));
         };
         let missing = match kind {
             EntryKind::Wall if out.reflectance.is_none() => Some("reflectance"),
@@ -361,7 +460,7 @@ impl<'a> Parser<'a> {
         Ok(out)
     }
 
-    fn color(&self, v: &Spanned<DeValue>) -> Fail<[u8; 3]> {
+    fn color(&self, key: &str, v: &Spanned<DeValue>) -> Fail<[u8; 3]> {
         let span = v.span();
         match v.get_ref() {
             DeValue::String(s) => parse_hex(s).ok_or_else(|| {
@@ -372,7 +471,7 @@ impl<'a> Parser<'a> {
                 };
                 self.err(
                     &span,
-                    format!("color {} is not a colour (expected \"#rrggbb\", \"#rgb\" or [r, g, b]){hint}", self.src(&span)),
+                    format!("{key} {} is not a colour (expected \"#rrggbb\", \"#rgb\" or [r, g, b]){hint}", self.src(&span)),
                 )
             }),
             DeValue::Array(a) => {
@@ -380,7 +479,7 @@ impl<'a> Parser<'a> {
                     self.err(
                         &span,
                         format!(
-                            "color {} is not a colour (expected [r, g, b] with whole numbers 0..=255, or \"#rrggbb\")",
+                            "{key} {} is not a colour (expected [r, g, b] with whole numbers 0..=255, or \"#rrggbb\")",
                             self.src(&span)
                         ),
                     )
@@ -400,7 +499,7 @@ impl<'a> Parser<'a> {
             }
             other => Err(self.err(
                 &span,
-                format!("color must be \"#rrggbb\", \"#rgb\" or [r, g, b], found {}", other.type_str()),
+                format!("{key} must be \"#rrggbb\", \"#rgb\" or [r, g, b], found {}", other.type_str()),
             )),
         }
     }
