@@ -623,8 +623,11 @@ fn watch(a: &WatchArgs) -> u8 {
                     LevelOutcome::UpToDate { path } => batch::stored_report(&out_dir, path),
                     _ => None,
                 };
-                for (line, _) in outcome_lines(&o, stored.as_ref(), voice) {
-                    say(&line);
+                // Quiet: only errors (and, with --strict, warnings, which are then failures).
+                for (line, error) in outcome_lines(&o, stored.as_ref(), voice) {
+                    if error || !quiet {
+                        say(&line);
+                    }
                 }
             }
         })
