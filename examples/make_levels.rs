@@ -15,12 +15,25 @@ use flatbake_synth::{self as synth, Painted};
 /// The sample set: small enough that the whole folder bakes at several
 /// qualities in a few minutes on two cores, varied enough to show every
 /// effect the README talks about.
+/// `level` with `[bake] exposure = x` in its palette: the sample levels whose
+/// bright lamps would clip more than a tenth of the floor at exposure 1 (and
+/// so warn on a newcomer's first bake) are shipped darker.
+fn exposed(mut level: Painted, x: f64) -> Painted {
+    assert!(
+        !level.palette_toml.contains("[bake]"),
+        "{}: one [bake] table",
+        level.name
+    );
+    level.palette_toml += &format!("\n[bake]\nexposure = {x}\n");
+    level
+}
+
 fn samples() -> Vec<Painted> {
     vec![
-        synth::cornell(96),
-        synth::colour_bleed(128),
-        synth::dungeon(192, 160, 7),
-        synth::maze(128, 128, 3, 11),
+        exposed(synth::cornell(96), 0.8),
+        exposed(synth::colour_bleed(128), 0.7),
+        exposed(synth::dungeon(192, 160, 7), 0.8),
+        exposed(synth::maze(128, 128, 3, 11), 0.8),
         synth::pillars(160, 70, 5),
         synth::falloff_hall(256, 64),
         synth::big_level(512, 2014),
