@@ -56,29 +56,23 @@ impl MemoryEstimate {
         let pixels = (level.width as u64) * (level.height as u64);
         let n = scene.patch_count() as u64;
         let point_entries = if plan.needs_form_factors() {
-            match ctx.settings.kernel {
-                Kernel::Flatland => {
-                    let edges = &scene.geometry.edges;
-                    let lens: Vec<f64> = edges.iter().map(|e| e.len()).collect();
-                    let reach = Reach::new(
-                        &lens,
-                        &vec![1.0; edges.len()],
-                        ctx.falloff,
-                        0.5,
-                        ctx.reach_bound,
-                    );
-                    transport::estimate_point_entries(
-                        &scene.geometry,
-                        &scene.patches,
-                        ctx.settings.knobs.quad,
-                        ctx.falloff,
-                        &reach,
-                        SAMPLED_PATCHES,
-                    )
-                }
-                // One row entry per visible patch pair: at most n^2.
-                Kernel::Paper => n.saturating_mul(n),
-            }
+            // The paper kernel stores one entry per visible patch pair, with
+            // no reach bound: the same count at one point per patch.
+            let (quad, bound) = match ctx.settings.kernel {
+                Kernel::Flatland => (ctx.settings.knobs.quad, ctx.reach_bound),
+                Kernel::Paper => (1, 0.0),
+            };
+            let edges = &scene.geometry.edges;
+            let lens: Vec<f64> = edges.iter().map(|e| e.len()).collect();
+            let reach = Reach::new(&lens, &vec![1.0; edges.len()], ctx.falloff, 0.5, bound);
+            transport::estimate_point_entries(
+                &scene.geometry,
+                &scene.patches,
+                quad,
+                ctx.falloff,
+                &reach,
+                SAMPLED_PATCHES,
+            )
         } else {
             0
         };
