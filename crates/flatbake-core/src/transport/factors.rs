@@ -264,6 +264,41 @@ fn query_points(
     (pos, pixel)
 }
 
+/// Runs `f(point, its row)` for the quadrature points of patches `which`
+/// (point `i` belongs to `which[i / q]`): each point's exact visibility and
+/// its factors `K(x, j)` towards the patches it sees within their reach. The
+/// one visit behind both [`form_factors`] and [`estimate_point_entries`].
+fn visit_point_rows(
+    geometry: &Geometry,
+    patches: &Patches,
+    xs: &[f64],
+    which: &[usize],
+    falloff: Option<Falloff>,
+    reach: &Reach,
+    f: &(dyn Fn(usize, Vec<(u32, f64)>) + Sync),
+) -> VisitStats {
+    let edges = &geometry.edges;
+    let q = xs.len();
+    let (pos, pixel) = query_points(geometry, patches, xs, which.iter().copied());
+    let normal = |i: usize| edges[patches.edge[which[i / q]] as usize].normal;
+    let view = |i: usize| View::Half(normal(i));
+    // Every edge receives light: each is wanted within its reach.
+    let reach2 = wanted_reach(reach, |_| true);
+    for_each_visibility(
+        geometry,
+        &pos,
+        &pixel,
+        &view,
+        reach.max,
+        Some(&reach2),
+        &|i, spans| {
+            let mut out = Vec::new();
+            point_factors(edges, patches, pos[i], normal(i), spans, falloff, &mut out);
+            f(i, out);
+        },
+    )
+}
+
 /// An estimate of how many entries [`form_factors`] would store in its
 /// per-point rows (one per quadrature point and patch it sees), from the
 /// exact visibility of at most `samples` patches spread evenly over the
@@ -283,29 +318,13 @@ pub fn estimate_point_entries(
         return 0;
     }
     let (xs, _) = gauss_legendre(quad);
-    let q = xs.len();
     let k = samples.min(n);
     // Patch i * n / k for i < k: evenly spread, deterministic.
     let picked: Vec<usize> = (0..k).map(|i| i * n / k).collect();
-    let (pos, pixel) = query_points(geometry, patches, xs, picked.iter().copied());
-    let edges = &geometry.edges;
-    let normal = |i: usize| edges[patches.edge[picked[i / q]] as usize].normal;
-    let view = |i: usize| View::Half(normal(i));
-    let reach2 = wanted_reach(reach, |_| true);
     let counted = std::sync::atomic::AtomicU64::new(0);
-    for_each_visibility(
-        geometry,
-        &pos,
-        &pixel,
-        &view,
-        reach.max,
-        Some(&reach2),
-        &|i, spans| {
-            let mut out = Vec::new();
-            point_factors(edges, patches, pos[i], normal(i), spans, falloff, &mut out);
-            counted.fetch_add(out.len() as u64, std::sync::atomic::Ordering::Relaxed);
-        },
-    );
+    visit_point_rows(geometry, patches, xs, &picked, falloff, reach, &|_, row| {
+        counted.fetch_add(row.len() as u64, std::sync::atomic::Ordering::Relaxed);
+    });
     let counted = counted.into_inner() as f64;
     (counted * n as f64 / k as f64).ceil() as u64
 }
@@ -319,37 +338,15 @@ pub fn form_factors(
     falloff: Option<Falloff>,
     reach: &Reach,
 ) -> (FormFactors, PointRows, VisitStats) {
-    let edges = &geometry.edges;
     let (xs, ws) = gauss_legendre(quad);
     let q = xs.len();
     let n = patches.len();
-    let (pos, pixel) = query_points(geometry, patches, xs, 0..n);
     let results: Vec<std::sync::Mutex<Vec<(u32, f64)>>> =
         (0..n * q).map(|_| Default::default()).collect();
-    let view = |i: usize| View::Half(edges[patches.edge[i / q] as usize].normal);
-    // Every edge receives light: each is wanted within its reach.
-    let reach2 = wanted_reach(reach, |_| true);
-    let stats = for_each_visibility(
-        geometry,
-        &pos,
-        &pixel,
-        &view,
-        reach.max,
-        Some(&reach2),
-        &|i, spans| {
-            let mut out = Vec::new();
-            point_factors(
-                edges,
-                patches,
-                pos[i],
-                edges[patches.edge[i / q] as usize].normal,
-                spans,
-                falloff,
-                &mut out,
-            );
-            *results[i].lock().expect("no panics while holding the lock") = out;
-        },
-    );
+    let all: Vec<usize> = (0..n).collect();
+    let stats = visit_point_rows(geometry, patches, xs, &all, falloff, reach, &|i, row| {
+        *results[i].lock().expect("no panics while holding the lock") = row;
+    });
     let rows: Vec<Vec<(u32, f64)>> = (0..n)
         .into_par_iter()
         .map(|p| {
