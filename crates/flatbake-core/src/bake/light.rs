@@ -29,11 +29,14 @@ pub fn gather(
     ctx: &Ctx,
     scene: &Scene,
     plan: &Plan,
-    transport: &Transport,
+    transport: &mut Transport,
     solved: &Solved,
     log: &mut Log,
 ) -> Gathered {
     let rad = components(scene, plan, transport, solved);
+    // The per-point rows served only the slopes: freed before the gather,
+    // so that the bake's peak is the larger of the two stages, not their sum.
+    transport.point_rows = None;
     let kk = rad.components;
     let rule = ReachRule::new(ctx, scene, solved, &rad);
     let (reached, unreached) = reachable_pixels(ctx, scene, &rad);

@@ -193,6 +193,11 @@ fn solid_pixels(
         for u in lo as i32..hi as i32 {
             let px = e.solid_pixel_at(u);
             let i = px[1] as usize * w + px[0] as usize;
+            if range.is_empty() {
+                // A side facing a region no light reaches: radiosity 0.
+                count[i] += 1;
+                continue;
+            }
             // Length-weighted mean of the patches covering [u, u + 1].
             let (a, bnd) = (u as f64, u as f64 + 1.0);
             let k0 = (((a - lo) / step).floor() as usize).min(range.len() - 1);

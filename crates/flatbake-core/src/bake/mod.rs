@@ -340,7 +340,7 @@ pub fn bake_with_progress(
 
     progress("geometry");
     let t = Instant::now();
-    let scene = Scene::new(level, settings.knobs.patch_len);
+    let scene = Scene::new(level, settings.knobs.patch_len, settings.exhaustive);
     timed(&mut timings.geometry, t);
 
     let mut plan = Plan::new(&ctx, &scene, &mut log);
@@ -354,7 +354,7 @@ pub fn bake_with_progress(
         });
     }
 
-    let transport = if plan.needs_form_factors() {
+    let mut transport = if plan.needs_form_factors() {
         progress("form factors");
         let t = Instant::now();
         let transport = factors::form_factors(&ctx, &scene, &mut plan, &mut log);
@@ -371,7 +371,7 @@ pub fn bake_with_progress(
 
     progress("gather");
     let t = Instant::now();
-    let gathered = light::gather(&ctx, &scene, &plan, &transport, &solved, &mut log);
+    let gathered = light::gather(&ctx, &scene, &plan, &mut transport, &solved, &mut log);
     let mut assembled = lightmap::assemble(&ctx, &scene, &plan, &solved, &gathered);
     timed(&mut timings.gather, t);
     timed(&mut timings.total, t_total);

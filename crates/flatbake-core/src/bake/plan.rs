@@ -42,8 +42,24 @@ impl Plan {
         let any_reflects = scene.reflects(&channels.classes);
         let lit = !channels.classes.is_empty();
         let mut bounce = lit && (any_reflects || settings.exhaustive) && np > 0;
+        if scene.dark_edges > 0 {
+            log.skip(
+                "patches",
+                format!(
+                    "{} edges facing closed regions with no emitter, where no light can arrive (their radiosity is 0)",
+                    scene.dark_edges
+                ),
+            );
+        }
         if lit && !any_reflects && !settings.exhaustive {
-            log.skip("bounce", "no wall reflects");
+            log.skip(
+                "bounce",
+                if scene.dark_edges > 0 {
+                    "no wall that light can reach reflects"
+                } else {
+                    "no wall reflects"
+                },
+            );
         }
         if bounce && settings.bounces == Some(0) {
             log.skip("bounce", "bounces = 0: direct light only");

@@ -28,14 +28,20 @@ pub struct Scene {
     pub emitter_patch: Vec<bool>,
     /// The floor pixels, the query points of the gather.
     pub floor_pixels: Vec<[i32; 2]>,
+    /// Edges given no patches: they face a closed region with no emitter,
+    /// where no light can arrive, so their radiosity is exactly 0.
+    pub dark_edges: usize,
 }
 
 impl Scene {
     /// Traces `level` and cuts its edges into patches of at most `patch_len`.
-    pub fn new(level: &Level, patch_len: f64) -> Scene {
+    pub fn new(level: &Level, patch_len: f64, exhaustive: bool) -> Scene {
         let geometry = geometry::trace(level);
-        let patches = Patches::new(&geometry, patch_len);
+        let lit = lit_components(level, &geometry);
         let edges = &geometry.edges;
+        let keep = |e: usize| exhaustive || lit[edges[e].component as usize];
+        let dark_edges = (0..edges.len()).filter(|&e| !keep(e)).count();
+        let patches = Patches::new_where(&geometry, patch_len, keep);
         let np = patches.len();
         let mut used = vec![false; level.materials.len()];
         for e in edges {
@@ -54,6 +60,7 @@ impl Scene {
             .map(|p| mat(p).kind == MaterialKind::Emitter)
             .collect();
         Scene {
+            dark_edges,
             floor_pixels: crate::gather::floor_pixels(level),
             geometry,
             patches,
@@ -84,4 +91,19 @@ impl Scene {
             .iter()
             .any(|&c| self.rho[c].iter().any(|&r| r > 0.0))
     }
+}
+
+/// Which free-space components light can reach: those that some edge of an
+/// emitter material faces (whatever its emission, since a relight may switch
+/// it on). Light never passes between components, so every other one stays
+/// dark exactly.
+fn lit_components(level: &Level, geometry: &Geometry) -> Vec<bool> {
+    let mut lit = vec![false; geometry.component_count as usize];
+    for e in &geometry.edges {
+        let m = &level.materials[e.material as usize];
+        if m.kind == MaterialKind::Emitter || m.emits() {
+            lit[e.component as usize] = true;
+        }
+    }
+    lit
 }

@@ -21,13 +21,24 @@ pub struct Patches {
 impl Patches {
     /// Cuts every edge into `ceil(len / patch_len)` equal patches.
     pub fn new(geometry: &Geometry, patch_len: f64) -> Patches {
+        Patches::new_where(geometry, patch_len, |_| true)
+    }
+
+    /// Cuts the edges that `keep` says may carry light into
+    /// `ceil(len / patch_len)` equal patches, and gives the others none
+    /// (their radiosity is 0 and nothing reads it).
+    pub fn new_where(geometry: &Geometry, patch_len: f64, keep: impl Fn(usize) -> bool) -> Patches {
         let mut first = Vec::with_capacity(geometry.edges.len() + 1);
         let mut step = Vec::with_capacity(geometry.edges.len());
         let mut edge = Vec::new();
         first.push(0);
         for (i, e) in geometry.edges.iter().enumerate() {
             let len = e.len();
-            let n = ((len / patch_len).ceil() as usize).max(1);
+            let n = if keep(i) {
+                ((len / patch_len).ceil() as usize).max(1)
+            } else {
+                0
+            };
             step.push(len / n as f64);
             edge.extend(std::iter::repeat_n(i as u32, n));
             first.push(edge.len() as u32);
@@ -80,6 +91,9 @@ impl Patches {
         let h = self.step[e];
         let first = self.first[e] as usize;
         let n = self.first[e + 1] as usize - first;
+        if n == 0 {
+            return;
+        }
         let k0 = (((span.s0 - lo) / h).floor().max(0.0) as usize).min(n - 1);
         let mut a = span.s0;
         let mut k = k0;
