@@ -75,7 +75,11 @@ impl<'g> TileTree<'g> {
     pub const LEAF: i32 = 8;
 
     /// Longest candidate list a region sweeps; longer ones walk the blocks.
-    pub const SWEEP_MAX: usize = 192;
+    pub const SWEEP_MAX: usize = 1024;
+    /// Longest list a region sweeps whatever culling removed from it.
+    pub const SWEEP_SHORT: usize = 192;
+    /// Longest list culled for hidden edges (`TileTree::cull_hidden`).
+    pub const CULL_MAX: usize = 768;
     /// Longest list a quadtree node keeps refining; above it the subtree walks.
     pub const REFINE_MAX: usize = 3000;
     /// Fewest query points in a leaf for its regions' lists to be culled
@@ -139,13 +143,18 @@ impl<'g> TileTree<'g> {
                     // Culling costs about two sweeps; a leaf with fewer
                     // points than this (a wall's form-factor points) gains
                     // less from shorter lists than it pays.
-                    let mine =
-                        if mine.len() <= 4 * Self::SWEEP_MAX && points >= Self::CULL_MIN_POINTS {
-                            self.cull_hidden(bbox, mine)
-                        } else {
-                            mine
-                        };
-                    (mine.len() <= Self::SWEEP_MAX).then_some(mine)
+                    let seen = mine.len();
+                    let mine = if seen <= Self::CULL_MAX && points >= Self::CULL_MIN_POINTS {
+                        self.cull_hidden(bbox, mine)
+                    } else {
+                        mine
+                    };
+                    // A long list that culling left almost whole is open
+                    // ground: the walk would visit every block of it, and
+                    // one sort of the list costs less.
+                    let open = 4 * mine.len() > 3 * seen;
+                    (mine.len() <= Self::SWEEP_SHORT || (open && mine.len() <= Self::SWEEP_MAX))
+                        .then_some(mine)
                 });
                 regions.push(Region {
                     bbox,
