@@ -67,10 +67,7 @@ fn main() -> anyhow::Result<()> {
     match rest.first().map(String::as_str) {
         Some("--classes") => return save_classes(&out, &synth::issue_classes()),
         Some("--classes-small") => {
-            let size = rest
-                .get(1)
-                .and_then(|v| v.parse().ok())
-                .ok_or_else(usage)?;
+            let size = rest.get(1).and_then(|v| v.parse().ok()).ok_or_else(usage)?;
             return save_classes(&out, &synth::small_classes(size));
         }
         _ => {}

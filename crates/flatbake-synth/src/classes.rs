@@ -216,8 +216,7 @@ impl Taken {
             && g.y >= 0
             && g.x1() <= self.w
             && g.y1() <= self.h
-            && (g.y..g.y1())
-                .all(|y| (g.x..g.x1()).all(|x| !self.bits[(y * self.w + x) as usize]))
+            && (g.y..g.y1()).all(|y| (g.x..g.x1()).all(|x| !self.bits[(y * self.w + x) as usize]))
     }
     fn take(&mut self, r: Rect) {
         for y in r.y.max(0)..r.y1().min(self.h) {
@@ -310,7 +309,15 @@ pub fn shooter_map(w: usize, h: usize, seed: u64) -> Painted {
         open.extend(doors(&mut c, *r, wall, *f, 0.5, door_w, &mut rng));
     }
     for r in &plan.corridors {
-        open.extend(doors(&mut c, *r, wall, CORRIDOR_FLOOR, 0.9, door_w, &mut rng));
+        open.extend(doors(
+            &mut c,
+            *r,
+            wall,
+            CORRIDOR_FLOOR,
+            0.9,
+            door_w,
+            &mut rng,
+        ));
     }
     // Keep doorways passable: nothing stands within a door's width of one.
     let keep: Vec<Rect> = open.iter().map(|d| d.grow(sc(12.0).max(3))).collect();
@@ -318,28 +325,21 @@ pub fn shooter_map(w: usize, h: usize, seed: u64) -> Painted {
     for r in &plan.rooms {
         let n = (r.area() as f64 / (1050.0 * k * k)).round() as usize;
         let big = sc(12.0).max(2);
-        let placed = scatter(
-            r.grow(-sc(4.0)),
-            n,
-            sc(3.0),
-            &keep,
-            &mut rng,
-            |rng| {
-                let u = rng.unit();
-                if u < 0.65 {
-                    let s = rng.range(sc(5.0), big + 1);
-                    (s, s)
+        let placed = scatter(r.grow(-sc(4.0)), n, sc(3.0), &keep, &mut rng, |rng| {
+            let u = rng.unit();
+            if u < 0.65 {
+                let s = rng.range(sc(5.0), big + 1);
+                (s, s)
+            } else {
+                let long = rng.range(sc(10.0), sc(28.0) + 1);
+                let thin = sc(2.0);
+                if rng.chance(0.5) {
+                    (thin, long)
                 } else {
-                    let long = rng.range(sc(10.0), sc(28.0) + 1);
-                    let thin = sc(2.0);
-                    if rng.chance(0.5) {
-                        (thin, long)
-                    } else {
-                        (long, thin)
-                    }
+                    (long, thin)
                 }
-            },
-        );
+            }
+        });
         for p in placed {
             let col = if p.w == p.h { crate_c } else { cover };
             c.fill_rect(p, col);
@@ -832,7 +832,10 @@ pub fn dots(size: usize, seed: u64) -> Painted {
         if placed.len() >= n {
             break;
         }
-        let (x, y) = (2 * rng.range(1, half - 1) + 1, 2 * rng.range(1, half - 1) + 1);
+        let (x, y) = (
+            2 * rng.range(1, half - 1) + 1,
+            2 * rng.range(1, half - 1) + 1,
+        );
         if placed
             .iter()
             .all(|&(a, b)| (a - x).abs().max((b - y).abs()) >= 8)
@@ -962,7 +965,12 @@ mod tests {
         for p in small() {
             let (level, _) = p.level().unwrap_or_else(|e| panic!("{}: {e}", p.name));
             assert_eq!((level.width, level.height), (p.width, p.height));
-            assert!(level.warnings.is_empty(), "{}: {:?}", p.name, level.warnings);
+            assert!(
+                level.warnings.is_empty(),
+                "{}: {:?}",
+                p.name,
+                level.warnings
+            );
             assert!(
                 level.materials.iter().any(|m| m.emits()),
                 "{}: no light",
@@ -1029,7 +1037,11 @@ mod tests {
         // 300 pillars of 4 edges and 4 lights of 4, plus the wall's inside.
         assert_eq!(trace(&level).edges.len(), 300 * 4 + 4 * 4 + 4);
         let l = light_field(128, 20, 11.0, 1);
-        let lit = l.rgba.iter().filter(|&&c| c == crate::rgb(0xfff0d0)).count();
+        let lit = l
+            .rgba
+            .iter()
+            .filter(|&&c| c == crate::rgb(0xfff0d0))
+            .count();
         assert_eq!(lit, 20);
     }
 
