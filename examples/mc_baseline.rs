@@ -327,13 +327,16 @@ fn square_angle(p: (f64, f64), (x0, y0, x1, y1): (f64, f64, f64, f64)) -> f64 {
     a.iter().copied().fold(f64::MIN, f64::max) - a.iter().copied().fold(f64::MAX, f64::min)
 }
 
+/// A closed-form answer for floor pixel `(x, y)`.
+type Exact = dyn Fn(usize, usize) -> f64;
+
 fn validate(rays: usize) -> anyhow::Result<()> {
     println!("### Agreement in the limit ({rays} rays per pixel)\n");
     println!(
         "| scene | closed form | MC mean | MC err vs closed form | flatbake normal err | flatbake reference err | MC err vs flatbake reference |"
     );
     println!("|---|---|---|---|---|---|---|");
-    let cases: [(Painted, Box<dyn Fn(usize, usize) -> f64>, String); 2] = [
+    let cases: [(Painted, Box<Exact>, String); 2] = [
         (
             closed_room(),
             Box::new(|_, _| 2.0),
