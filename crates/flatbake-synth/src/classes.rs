@@ -261,8 +261,8 @@ fn light_side(k: f64) -> i32 {
 /// building inside a 4 px outer wall, split by shared 2-4 px walls into
 /// rooms and long corridors 10-18 px wide (scaled with the map), doorways
 /// between neighbours, crates and low cover walls in every room, and small
-/// square ceiling lights (2 x 2 px at full size, about 70 of them, in
-/// proportion to area). The palette sets falloff 48 at full size (scaled
+/// square ceiling lights (2 x 2 px at full size, 1 px below about 600 px;
+/// about 70 of them at the full size's aspect, shared out by area). The palette sets falloff 48 at full size (scaled
 /// with the map), as a game would. About 4,000 edges at full size.
 ///
 /// Class: the real game level, many rooms and thousands of short edges, the
@@ -347,7 +347,8 @@ pub fn shooter_map(w: usize, h: usize, seed: u64) -> Painted {
         }
     }
     let areas: Vec<Rect> = plan.rooms.iter().chain(&plan.corridors).copied().collect();
-    let n_lights = ((70.0 * (w * h) as f64 / (1025.0 * 838.0)).round() as usize).max(2);
+    // 70 lights in a map of the full size's shape, whatever the scale.
+    let n_lights = ((70.0 * (w * h) as f64 / (1025.0 * 838.0 * k * k)).round() as usize).max(2);
     let shares = apportion(n_lights, &areas.iter().map(Rect::area).collect::<Vec<_>>());
     let ls = light_side(k * 838.0 / 512.0);
     let avoid: Vec<Rect> = keep.iter().chain(&stuff).copied().collect();
