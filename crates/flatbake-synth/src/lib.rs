@@ -20,6 +20,12 @@
 
 use std::path::Path;
 
+mod classes;
+pub use classes::{
+    Class, checkerboard, corridors, courtyard_map, dots, issue_classes, light_field, noise,
+    pillar_field, shooter_map, small_classes,
+};
+
 /// A floor colour is "near" a palette colour when every channel is within
 /// this many 8-bit steps of it; generated floors never are.
 pub const NEAR: u8 = 40;
