@@ -229,7 +229,11 @@ fn distant_patches_merge_within_their_bound() {
     let level = ascii(&refs(&rows), &[('#', wall(0.7)), ('L', light(e, 0.0))]);
     for falloff in [None, Some(60.0)] {
         for q in [Quality::Draft, Quality::Normal, Quality::High] {
-            let b = run(&level, q, falloff, false);
+            // Merging alone: draft's interpolation is checked on its own.
+            let mut s = Settings::new(q);
+            s.falloff = falloff;
+            s.knobs.lattice = None;
+            let b = bake(&level, &s, &|_| {}).expect("bakes");
             let full = run(&level, q, falloff, true);
             assert!(
                 skipped(&b, "distant patches"),
@@ -278,4 +282,76 @@ fn bounces_truncate_the_series_exactly() {
             assert!(skipped(&b, "bounce"));
         }
     }
+}
+
+#[test]
+fn sealed_dark_cells_get_no_patches_and_change_nothing() {
+    // A lit room beside a strip of sealed one-pixel cells (a checkerboard):
+    // the cells' walls get no patches, and the bake is the exhaustive one.
+    let rows = [
+        "####LL##########",
+        "#.......#.#.#.##",
+        "#.......##.#.#.#",
+        "#.......#.#.#.##",
+        "#.......##.#.#.#",
+        "################",
+    ];
+    let level = ascii(&rows, &[('#', wall(0.5)), ('L', light(2.0, 0.0))]);
+    let b = run(&level, Quality::Normal, None, false);
+    let full = run(&level, Quality::Normal, None, true);
+    assert!(
+        b.report.counts.patches < full.report.counts.patches,
+        "{} patches against {}",
+        b.report.counts.patches,
+        full.report.counts.patches
+    );
+    assert!(skipped(&b, "patches"), "{:?}", b.report.skipped);
+    assert!(!skipped(&full, "patches"));
+    assert_eq!(max_diff(&b, &full), 0.0);
+}
+
+/// Relative RMS difference of two lightmaps over floor pixels.
+fn rel_rms(level: &Level, a: &Baked, b: &Baked) -> f64 {
+    let (mut num, mut den) = (0.0, 0.0);
+    for (i, cell) in level.cells.iter().enumerate() {
+        if *cell == Cell::Floor {
+            for c in 0..3 {
+                let (x, y) = (a.lightmap.rgb[i][c] as f64, b.lightmap.rgb[i][c] as f64);
+                num += (x - y) * (x - y);
+                den += y * y;
+            }
+        }
+    }
+    (num / den).sqrt()
+}
+
+#[test]
+fn draft_interpolates_smooth_floor_and_stays_near_its_exact_gather() {
+    // An open hall with a long light and a pillar: most cells are smooth.
+    let mut rows = vec![format!("#{}#", "L".repeat(62))];
+    for y in 0..46 {
+        let pillar = (20..24).contains(&y);
+        rows.push(format!(
+            "#{}{}{}#",
+            ".".repeat(30),
+            if pillar { "##" } else { ".." },
+            ".".repeat(30)
+        ));
+    }
+    rows.push("#".repeat(64));
+    let level = ascii(&refs(&rows), &[('#', wall(0.5)), ('L', light(2.0, 0.0))]);
+    let b = run(&level, Quality::Draft, Some(40.0), false);
+    let mut s = Settings::new(Quality::Draft);
+    s.falloff = Some(40.0);
+    s.knobs.lattice = None;
+    let each = bake(&level, &s, &|_| {}).expect("bakes");
+    assert!(skipped(&b, "pixels"), "{:?}", b.report.skipped);
+    assert!(!skipped(&each, "pixels"));
+    let err = rel_rms(&level, &b, &each);
+    assert!(err > 0.0 && err < 0.01, "interpolation error {err}");
+    // Exhaustive bakes gather every pixel.
+    assert!(!skipped(
+        &run(&level, Quality::Draft, Some(40.0), true),
+        "pixels"
+    ));
 }

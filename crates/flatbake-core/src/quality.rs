@@ -32,7 +32,15 @@ pub struct Knobs {
     /// reflecting edge makes its largest possible contribution smaller than
     /// this fraction of the level's brightest emission are not gathered.
     pub reach_bound: f64,
+    /// Relative tolerance of the interpolated gather ([`crate::gather::Lattice`]):
+    /// floor light is gathered exactly on a lattice of every fourth pixel and
+    /// interpolated in between where a cell's centre shows it is smooth to
+    /// within this fraction. `None`: every floor pixel is gathered exactly.
+    pub lattice: Option<f64>,
 }
+
+/// The lattice tolerance of `draft` (see [`Knobs::lattice`]).
+pub const DRAFT_LATTICE: f64 = 0.02;
 
 impl Quality {
     /// Every preset, cheapest first.
@@ -51,24 +59,28 @@ impl Quality {
                 quad: 2,
                 tolerance: 1e-4,
                 reach_bound: 1e-4,
+                lattice: Some(DRAFT_LATTICE),
             },
             Quality::Normal => Knobs {
                 patch_len: 4.0,
                 quad: 3,
                 tolerance: 1e-6,
                 reach_bound: 1e-5,
+                lattice: None,
             },
             Quality::High => Knobs {
                 patch_len: 2.0,
                 quad: 4,
                 tolerance: 1e-8,
                 reach_bound: 1e-6,
+                lattice: None,
             },
             Quality::Reference => Knobs {
                 patch_len: 0.5,
                 quad: 8,
                 tolerance: 1e-10,
                 reach_bound: 0.0,
+                lattice: None,
             },
         }
     }

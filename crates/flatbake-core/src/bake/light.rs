@@ -147,8 +147,20 @@ fn run(
                 tolerance: rule.threshold,
                 decide: rule.decide,
                 progress: ctx.gather_progress.map(gather::OnProgress),
+                lattice: settings.knobs.lattice.filter(|_| !settings.exhaustive),
             };
             let (values, stats, counts) = gather::gather(geometry, patches, rad, reached, &options);
+            if counts.interpolated > 0 {
+                log.skip(
+                    "pixels",
+                    format!(
+                        "{} of {} floor pixels interpolated in cells of 8 or 4 px between pixels gathered exactly, where the cell's centre matched the interpolation within {}% and saw the same lights and shadow lines as its corners",
+                        counts.interpolated,
+                        reached.len(),
+                        100.0 * options.lattice.unwrap_or(0.0)
+                    ),
+                );
+            }
             if ctx.reach_bound > 0.0 && counts.pieces < counts.patch_pieces {
                 log.skip(
                     "distant patches",

@@ -22,12 +22,16 @@ pub struct GatherCounts {
     pub pieces: u64,
     /// ... and the patch pieces they stand for (equal when nothing merged).
     pub patch_pieces: u64,
+    /// Pixels whose light was interpolated between exactly gathered lattice
+    /// points instead of gathered ([`GatherOptions::lattice`]).
+    pub interpolated: u64,
 }
 
 impl std::ops::AddAssign for GatherCounts {
     fn add_assign(&mut self, o: GatherCounts) {
         self.pieces += o.pieces;
         self.patch_pieces += o.patch_pieces;
+        self.interpolated += o.interpolated;
     }
 }
 
@@ -108,6 +112,10 @@ pub struct GatherOptions<'a> {
     pub decide: std::ops::Range<usize>,
     /// Told the fraction of `pixels` gathered so far, if given.
     pub progress: Option<OnProgress<'a>>,
+    /// Interpolate between exactly gathered lattice points where that is
+    /// smooth to within this relative tolerance ([`super::lattice`]; the
+    /// flatland kernel only). `None`: gather every pixel exactly.
+    pub lattice: Option<f64>,
 }
 
 /// A callback told the fraction (0 to 1) of a gather that is done; called
@@ -452,7 +460,8 @@ pub fn floor_pixels(level: &Level) -> Vec<[i32; 2]> {
 /// and what was left out (beyond reach, or in regions no lit edge reaches).
 /// Distant reflected light is gathered in merged pieces whose total error
 /// per pixel is at most the options' tolerance ([`PatchTree`]); how much was
-/// merged is counted.
+/// merged is counted. With a lattice tolerance, pixels between lattice
+/// points are interpolated where that is smooth ([`super::lattice`]).
 pub fn gather(
     geometry: &Geometry,
     patches: &Patches,
@@ -467,8 +476,8 @@ pub fn gather(
         tolerance,
         ref decide,
         progress,
+        lattice,
     } = *options;
-    let k = rad.components;
     let tree = PatchTree::new(
         &geometry.edges,
         patches,
@@ -485,52 +494,186 @@ pub fn gather(
         falloff,
         kernel,
     };
-    let mut out = vec![0.0; pixels.len() * k];
-    let pos: Vec<[f64; 2]> = pixels
-        .iter()
-        .map(|p| [p[0] as f64 + 0.5, p[1] as f64 + 0.5])
-        .collect();
-    let shared = Disjoint::new(&mut out);
-    // What each pixel merged, summed afterwards (a lock or an atomic shared
-    // by every pixel costs more than the pixel's own bookkeeping).
-    let mut merged = vec![[0u32; 2]; pixels.len()];
-    let shared_merged = Disjoint::new(&mut merged);
     // Edges with light, each within its reach.
     let reach2 = wanted_reach(reach, |e| rad.edge_emits[e] || rad.edge_reflects[e]);
     let tally = Tally::new(progress, pixels.len());
-    let stats = for_each_visibility_counted(
+    let exact = Exact {
         geometry,
-        &pos,
-        pixels,
-        &|_| View::Full,
-        reach.max,
-        Some(&reach2),
-        &|n| tally.add(n),
-        &|i, spans| {
-            // Bakes have at most three channels: no allocation per pixel.
-            let mut small = [0.0; 3];
-            let mut big = Vec::new();
-            let acc = if k <= 3 {
-                &mut small[..k]
+        light: &light,
+        reach_max: reach.max,
+        reach2: &reach2,
+        tally: &tally,
+    };
+    match lattice {
+        Some(relative) if kernel == Kernel::Flatland => {
+            super::lattice::gather(&exact, pixels, relative, tolerance)
+        }
+        _ => {
+            let pass = exact.run(pixels, None);
+            (pass.values, pass.stats, pass.counts)
+        }
+    }
+}
+
+/// The exact gather of a list of pixels, as [`gather`] sets it up: what
+/// every pass of the lattice gather shares.
+pub(super) struct Exact<'a> {
+    pub geometry: &'a Geometry,
+    pub light: &'a Lighting<'a>,
+    reach_max: f64,
+    reach2: &'a [f64],
+    tally: &'a Tally<'a>,
+}
+
+/// What one exact pass over a list of pixels returned.
+pub(super) struct Pass {
+    /// `values[i * components + k]` for the pass's pixel `i`.
+    pub values: Vec<f64>,
+    /// Per pixel (when asked for): its [`signature`].
+    pub signature: Vec<u64>,
+    pub stats: VisitStats,
+    pub counts: GatherCounts,
+}
+
+impl Exact<'_> {
+    /// Components per pixel.
+    pub fn components(&self) -> usize {
+        self.light.rad.components
+    }
+
+    /// Counts `n` pixels as done for the progress report.
+    pub fn done(&self, n: usize) {
+        self.tally.add(n);
+    }
+
+    /// Gathers `pixels` exactly, with their [`signature`]s for the given
+    /// relative tolerance if asked for.
+    pub fn run(&self, pixels: &[[i32; 2]], signatures: Option<f64>) -> Pass {
+        let (light, rad) = (self.light, self.light.rad);
+        let k = rad.components;
+        let mut out = vec![0.0; pixels.len() * k];
+        let mut sigs = vec![
+            0u64;
+            if signatures.is_some() {
+                pixels.len()
             } else {
-                big.resize(k, 0.0);
-                &mut big[..]
-            };
-            let c =
-                SCRATCH.with(|sc| pixel_light(&light, pos[i], spans, acc, &mut sc.borrow_mut()));
-            let c = [c.pieces, c.patch_pieces].map(|v| v.min(u32::MAX as u64) as u32);
-            // SAFETY: each pixel index is visited exactly once.
-            unsafe { shared_merged.write(i, c) };
-            for (c, &v) in acc.iter().enumerate() {
-                // SAFETY: as above.
-                unsafe { shared.write(i * k + c, v) };
+                0
             }
-        },
-    );
-    let counts = merged.iter().fold(GatherCounts::default(), |mut t, c| {
-        t.pieces += c[0] as u64;
-        t.patch_pieces += c[1] as u64;
-        t
-    });
-    (out, stats, counts)
+        ];
+        let pos: Vec<[f64; 2]> = pixels
+            .iter()
+            .map(|p| [p[0] as f64 + 0.5, p[1] as f64 + 0.5])
+            .collect();
+        let shared = Disjoint::new(&mut out);
+        let shared_sig = Disjoint::new(&mut sigs);
+        // What each pixel merged, summed afterwards (a lock or an atomic shared
+        // by every pixel costs more than the pixel's own bookkeeping).
+        let mut merged = vec![[0u32; 2]; pixels.len()];
+        let shared_merged = Disjoint::new(&mut merged);
+        let stats = for_each_visibility_counted(
+            self.geometry,
+            &pos,
+            pixels,
+            &|_| View::Full,
+            self.reach_max,
+            Some(self.reach2),
+            &|n| self.tally.add(n),
+            &|i, spans| {
+                // Bakes have at most three channels: no allocation per pixel.
+                let mut small = [0.0; 3];
+                let mut big = Vec::new();
+                let acc = if k <= 3 {
+                    &mut small[..k]
+                } else {
+                    big.resize(k, 0.0);
+                    &mut big[..]
+                };
+                let (c, sig) = SCRATCH.with(|sc| {
+                    let sc = &mut *sc.borrow_mut();
+                    let c = pixel_light(light, pos[i], spans, acc, sc);
+                    (
+                        c,
+                        signatures.map(|rel| signature(light, spans, sc, acc, rel)),
+                    )
+                });
+                let c = [c.pieces, c.patch_pieces].map(|v| v.min(u32::MAX as u64) as u32);
+                // SAFETY: each pixel index is visited exactly once.
+                unsafe { shared_merged.write(i, c) };
+                for (c, &v) in acc.iter().enumerate() {
+                    // SAFETY: as above.
+                    unsafe { shared.write(i * k + c, v) };
+                }
+                if let Some(h) = sig {
+                    // SAFETY: as above.
+                    unsafe { shared_sig.write(i, h) };
+                }
+            },
+        );
+        let counts = merged.iter().fold(GatherCounts::default(), |mut t, c| {
+            t.pieces += c[0] as u64;
+            t.patch_pieces += c[1] as u64;
+            t
+        });
+        Pass {
+            values: out,
+            signature: sigs,
+            stats,
+            counts,
+        }
+    }
+}
+
+/// What a pixel's direct light is made of, as a hash: the emitting solids
+/// (loops) it sees, and which ends of their visible stretches are cut off
+/// by something in front, counting only stretches that add at least
+/// `relative` of the pixel's light. Two pixels with the same signature see
+/// the same lights whole or cut by the same shadow lines; a hard shadow
+/// line between them, or a light that appears, changes it. A face of a
+/// light turning edge-on does not (its light goes smoothly to 0).
+fn signature(
+    light: &Lighting,
+    spans: &[Span],
+    sc: &PixelScratch,
+    acc: &[f64],
+    relative: f64,
+) -> u64 {
+    let (edges, rad) = (light.edges, light.rad);
+    let k = rad.components;
+    let least = relative * acc.iter().copied().fold(0.0, f64::max);
+    let mut loops: Vec<u32> = Vec::new();
+    let mut h = 0u64;
+    // In the order `pixel_light` queued their integrals.
+    let emitting = spans.iter().filter(|s| rad.edge_emits[s.edge as usize]);
+    for (s, &g) in emitting.zip(&sc.em_g) {
+        let ei = s.edge as usize;
+        let e = &edges[ei];
+        let brightest = (0..k)
+            .map(|c| rad.edge_emission[ei * k + c])
+            .fold(0.0, f64::max);
+        if brightest * g / TAU < least {
+            continue;
+        }
+        loops.push(e.loop_id);
+        let (lo, hi) = e.extent();
+        if s.s0 > lo + 1e-9 {
+            h = h.wrapping_add(mix(2 * s.edge as u64));
+        }
+        if s.s1 < hi - 1e-9 {
+            h = h.wrapping_add(mix(2 * s.edge as u64 + 1));
+        }
+    }
+    loops.sort_unstable();
+    loops.dedup();
+    loops
+        .iter()
+        .fold(h, |h, &l| h.wrapping_add(mix((1 << 40) + l as u64)))
+}
+
+/// A 64-bit mix (SplitMix64's finaliser): summed over a pixel's emitting
+/// spans, it tells apart different sets of them.
+fn mix(mut z: u64) -> u64 {
+    z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
 }

@@ -13,6 +13,7 @@
 //! against every edge.
 
 mod fast;
+pub mod lattice;
 mod naive;
 mod patch_tree;
 

@@ -1,0 +1,201 @@
+//! The interpolated gather (`draft`): light gathered exactly on a lattice
+//! of every eighth pixel, and in between only where the lattice says it is
+//! needed (docs/transport.md#interpolated-gather).
+//!
+//! Floor light is smooth except across the shadow lines of walls and near
+//! lit edges. A cell of the lattice (8 x 8 pixels between four lattice
+//! points, all of them floor of one free region) is gathered at its four
+//! corners, its centre and the middles of its sides. Where each of those
+//! probes' exact light is within the tolerance of the mean of the corners
+//! it lies between, and all nine have the same
+//! signature (the same lights, cut by the same shadow lines: no hard shadow
+//! edge of direct light between them), the cell's other pixels are interpolated
+//! bilinearly from the corners. Every other cell is split into four cells
+//! of 4 x 4 pixels, tested the same way, and those that fail are gathered
+//! pixel by pixel. So a smooth open floor costs two exact pixels in 64, and a level
+//! of one-pixel walls costs what an exact gather does. What it misses is
+//! detail smaller than the cell that neither the centre nor the corners
+//! touch, such as a shadow line no wider than a pixel running between them:
+//! the error is measured per class of level in docs/accuracy.
+
+use crate::visibility::VisitStats;
+
+use super::fast::{Exact, GatherCounts};
+
+/// Lattice spacings, coarsest first, in pixels: a cell that fails its test
+/// is split into cells of the next spacing, and after the last one gathered
+/// pixel by pixel.
+pub const STEPS: [i32; 2] = [8, 4];
+
+/// Gathers `pixels` through the lattice: see the module docs. A cell is
+/// interpolated when, in every component, each probe's light differs from
+/// the mean of the corners it lies between by at most `relative` of the
+/// larger of the two plus `absolute`.
+pub(super) fn gather(
+    exact: &Exact,
+    pixels: &[[i32; 2]],
+    relative: f64,
+    absolute: f64,
+) -> (Vec<f64>, VisitStats, GatherCounts) {
+    let g = exact.geometry;
+    let (w, h) = (g.width as i32, g.height as i32);
+    let k = exact.components();
+    // Index of each pixel in `pixels`, by position.
+    let mut at = vec![u32::MAX; g.width * g.height];
+    for (i, p) in pixels.iter().enumerate() {
+        at[(p[1] * w + p[0]) as usize] = i as u32;
+    }
+    let index = |x: i32, y: i32| -> Option<usize> {
+        (x >= 0 && y >= 0 && x < w && y < h)
+            .then(|| at[(y * w + x) as usize])
+            .filter(|&i| i != u32::MAX)
+            .map(|i| i as usize)
+    };
+    let comp = |x: i32, y: i32| g.components[(y * w + x) as usize];
+    // A cell of side `step` whose every pixel is one of `pixels`, in one
+    // free region.
+    let whole = |step: i32, x0: i32, y0: i32| {
+        let c = comp(x0, y0);
+        (y0..=y0 + step).all(|y| (x0..=x0 + step).all(|x| index(x, y).is_some() && comp(x, y) == c))
+    };
+    let mut values = vec![0.0; pixels.len() * k];
+    let mut signature = vec![0u64; pixels.len()];
+    // 0: to gather, 1: gathered, 2: interpolated.
+    let mut state = vec![0u8; pixels.len()];
+    // Pixels of a cell that failed at the last spacing: gathered at the end
+    // even if a neighbouring cell interpolated them.
+    let mut exact_too = vec![false; pixels.len()];
+    let mut stats = VisitStats::default();
+    let mut counts = GatherCounts::default();
+    // Top-left corners of the cells that passed at the previous spacing.
+    let mut passed: std::collections::HashSet<[i32; 2]> = Default::default();
+    for (level, &step) in STEPS.iter().enumerate() {
+        let parent = (level > 0).then(|| STEPS[level - 1]);
+        let mut cells = Vec::new();
+        for y0 in (0..h - step).step_by(step as usize) {
+            for x0 in (0..w - step).step_by(step as usize) {
+                let inside_passed = parent.is_some_and(|ps| {
+                    passed.contains(&[x0 - x0.rem_euclid(ps), y0 - y0.rem_euclid(ps)])
+                });
+                if !inside_passed && whole(step, x0, y0) {
+                    cells.push([x0, y0]);
+                }
+            }
+        }
+        // Probes not gathered yet (an interpolated one is gathered now: the
+        // cells that use it need its exact light).
+        let mut want: Vec<usize> = Vec::new();
+        for &[x0, y0] in &cells {
+            for (x, y) in probes(x0, y0, step) {
+                let i = index(x, y).expect("a whole cell is floor");
+                if state[i] != 1 {
+                    state[i] = 1;
+                    want.push(i);
+                }
+            }
+        }
+        let pts: Vec<[i32; 2]> = want.iter().map(|&i| pixels[i]).collect();
+        let pass = exact.run(&pts, Some(relative));
+        for (j, &i) in want.iter().enumerate() {
+            values[i * k..(i + 1) * k].copy_from_slice(&pass.values[j * k..(j + 1) * k]);
+            signature[i] = pass.signature[j];
+        }
+        stats.culled_pairs += pass.stats.culled_pairs;
+        stats.unreached += pass.stats.unreached;
+        counts += pass.counts;
+        let last = level + 1 == STEPS.len();
+        let mut now_passed = std::collections::HashSet::new();
+        for &[x0, y0] in &cells {
+            let corner = [
+                (x0, y0),
+                (x0 + step, y0),
+                (x0, y0 + step),
+                (x0 + step, y0 + step),
+            ]
+            .map(|(x, y)| index(x, y).expect("a whole cell's corners are floor"));
+            let probe =
+                probes(x0, y0, step).map(|(x, y)| index(x, y).expect("a whole cell is floor"));
+            // Each probe against the mean of the corners it lies between:
+            // the centre (all four) and the middle of each side (two).
+            let between: [&[usize]; 5] = [&[0, 1, 2, 3], &[0, 1], &[2, 3], &[0, 2], &[1, 3]];
+            let smooth = probe.iter().all(|&i| signature[i] == signature[probe[0]])
+                && between.iter().enumerate().all(|(j, of)| {
+                    let at = probe[4 + j];
+                    (0..k).all(|c| {
+                        let mean = of.iter().map(|&n| values[corner[n] * k + c]).sum::<f64>()
+                            / of.len() as f64;
+                        let v = values[at * k + c];
+                        (v - mean).abs() <= relative * v.max(mean) + absolute
+                    })
+                });
+            if smooth {
+                now_passed.insert([x0, y0]);
+            }
+            if !smooth && !last {
+                continue;
+            }
+            for y in y0..=y0 + step {
+                for x in x0..=x0 + step {
+                    let i = index(x, y).expect("a whole cell is floor");
+                    if state[i] == 1 {
+                        continue;
+                    }
+                    if !smooth {
+                        exact_too[i] = true;
+                        continue;
+                    }
+                    let u = (x - x0) as f64 / step as f64;
+                    let v = (y - y0) as f64 / step as f64;
+                    let wts = [(1.0 - u) * (1.0 - v), u * (1.0 - v), (1.0 - u) * v, u * v];
+                    for c in 0..k {
+                        values[i * k + c] = corner
+                            .iter()
+                            .zip(wts)
+                            .map(|(&j, wt)| wt * values[j * k + c])
+                            .sum();
+                    }
+                    state[i] = 2;
+                }
+            }
+        }
+        passed = now_passed;
+    }
+    // Last pass: pixels of rough cells, and those in no whole cell.
+    let rest: Vec<usize> = (0..pixels.len())
+        .filter(|&i| state[i] == 0 || (state[i] == 2 && exact_too[i]))
+        .collect();
+    let interpolated = (0..pixels.len())
+        .filter(|&i| state[i] == 2 && !exact_too[i])
+        .count();
+    exact.done(interpolated);
+    let pts: Vec<[i32; 2]> = rest.iter().map(|&i| pixels[i]).collect();
+    let pass = exact.run(&pts, None);
+    for (j, &i) in rest.iter().enumerate() {
+        values[i * k..(i + 1) * k].copy_from_slice(&pass.values[j * k..(j + 1) * k]);
+    }
+    stats.culled_pairs += pass.stats.culled_pairs;
+    stats.unreached += pass.stats.unreached;
+    counts += pass.counts;
+    counts.interpolated = interpolated as u64;
+    (values, stats, counts)
+}
+
+/// The pixels at which a cell of side `step` at `(x0, y0)` is gathered
+/// exactly: its four corners, then its centre and the middles of its top,
+/// bottom, left and right sides. (A saddle, curved one way and the other
+/// way across, can leave the centre on the interpolation; a side's middle
+/// is not.)
+fn probes(x0: i32, y0: i32, step: i32) -> [(i32, i32); 9] {
+    let (h, s) = (step / 2, step);
+    [
+        (x0, y0),
+        (x0 + s, y0),
+        (x0, y0 + s),
+        (x0 + s, y0 + s),
+        (x0 + h, y0 + h),
+        (x0 + h, y0),
+        (x0 + h, y0 + s),
+        (x0, y0 + h),
+        (x0 + s, y0 + h),
+    ]
+}
