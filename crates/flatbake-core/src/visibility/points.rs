@@ -171,6 +171,9 @@ where
             let mut dropped = 0;
             // Walks are seeded with what the previous point of the region saw.
             let mut seed_region = usize::MAX;
+            // Per region with a long open list: sweep it (`Some(true)`) or
+            // walk, decided by what its first point sees.
+            let mut sweep_open: Vec<Option<bool>> = vec![None; leaf.regions.len()];
             for &i in grid.in_leaf(leaf.rect) {
                 let i = i as usize;
                 let px = pixel[i];
@@ -180,7 +183,11 @@ where
                 if region.is_some_and(|r| dark[r]) {
                     skipped += 1;
                 } else {
-                    match leaf.candidates_at(px) {
+                    let open = region.filter(|&r| leaf.regions[r].open);
+                    let cands = leaf
+                        .candidates_at(px)
+                        .filter(|_| open.is_none_or(|r| sweep_open[r] == Some(true)));
+                    match cands {
                         Some(cands) => {
                             let class = region.and_then(|r| class[r].as_deref());
                             dropped += sweeper.sweep_wanted(
@@ -210,6 +217,18 @@ where
                             seeds.extend(spans.iter().map(|s| s.edge));
                             seeds.dedup();
                             seed_region = region.unwrap_or(usize::MAX);
+                            // A point that sees most of its region's list
+                            // has open ground around it: one sort of the
+                            // list costs its neighbours less than walking
+                            // every block. Where the list is mostly hidden
+                            // (walls all round), the walk stops early.
+                            if let Some(r) = open
+                                && sweep_open[r].is_none()
+                            {
+                                let listed =
+                                    leaf.regions[r].candidates.as_ref().map_or(0, Vec::len);
+                                sweep_open[r] = Some(2 * seeds.len() >= listed);
+                            }
                         }
                     }
                 }

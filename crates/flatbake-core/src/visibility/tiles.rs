@@ -49,6 +49,10 @@ pub struct Region {
     pub component: u32,
     /// A short candidate list for [`Sweeper::sweep`], or `None`: use [`Sweeper::walk`].
     pub candidates: Option<Vec<u32>>,
+    /// The list is long (over [`TileTree::SWEEP_SHORT`]) and culling left
+    /// it almost whole: the region's first point walks, and the others
+    /// sweep only if it saw at least half the list.
+    pub open: bool,
 }
 
 impl LeafRegions {
@@ -149,17 +153,23 @@ impl<'g> TileTree<'g> {
                     } else {
                         mine
                     };
-                    // A long list that culling left almost whole is open
-                    // ground: the walk would visit every block of it, and
-                    // one sort of the list costs less.
-                    let open = 4 * mine.len() > 3 * seen;
-                    (mine.len() <= Self::SWEEP_SHORT || (open && mine.len() <= Self::SWEEP_MAX))
+                    // A long list that culling left almost whole may be
+                    // open ground, where the walk would visit every block
+                    // and one sort of the list costs less: kept, and swept
+                    // if the region's first point sees most of it
+                    // (`Region::open`).
+                    let whole = 4 * mine.len() > 3 * seen;
+                    (mine.len() <= Self::SWEEP_SHORT || (whole && mine.len() <= Self::SWEEP_MAX))
                         .then_some(mine)
                 });
+                let open = candidates
+                    .as_ref()
+                    .is_some_and(|c| c.len() > Self::SWEEP_SHORT);
                 regions.push(Region {
                     bbox,
                     component,
                     candidates,
+                    open,
                 });
             }
         }
