@@ -32,10 +32,10 @@ pub struct Knobs {
     /// reflecting edge makes its largest possible contribution smaller than
     /// this fraction of the level's brightest emission are not gathered.
     pub reach_bound: f64,
-    /// Relative tolerance of the interpolated gather ([`crate::gather::Lattice`]):
-    /// floor light is gathered exactly on a lattice of every fourth pixel and
-    /// interpolated in between where a cell's centre shows it is smooth to
-    /// within this fraction. `None`: every floor pixel is gathered exactly.
+    /// Relative tolerance of the interpolated gather ([`crate::gather::lattice`]):
+    /// floor light is gathered exactly at probe pixels of 8 and 4 px cells and
+    /// interpolated in between where the probes show it is smooth to within
+    /// this fraction. `None`: every floor pixel is gathered exactly.
     pub lattice: Option<f64>,
 }
 

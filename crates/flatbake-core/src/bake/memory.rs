@@ -11,7 +11,10 @@
 //!   tree; counted as [`PER_PATCH`];
 //! - per visible pair of a quadrature point and a patch: the per-point rows
 //!   of the form factors, their merged patch rows and the matrix built from
-//!   them, alive through the gather (measured at up to 28 bytes per entry);
+//!   them (measured at up to 28 bytes per entry). The per-point rows are
+//!   freed before the gather, but the estimate still adds them to the
+//!   pixels' share, so it errs on the safe side (14.1 GB estimated, 10.6 GB
+//!   measured on the 8192 px benchmark);
 //!   counted as [`PER_POINT_ENTRY`] and
 //!   estimated from the exact visibility of a sample of patches
 //!   ([`transport::estimate_point_entries`]);
