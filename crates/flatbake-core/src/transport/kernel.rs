@@ -99,6 +99,30 @@ impl Reach {
         };
         let bound =
             |b: f64, l: f64, r: f64| scale * b * f.weight(r) * std::f64::consts::PI.min(l / r);
+        let radius_of = |l: f64, b: f64| {
+            // The bound decreases with r: bracket, then bisect.
+            let mut hi = f.sqrt_a.max(l).max(1.0);
+            while bound(b, l, hi) > threshold {
+                hi *= 2.0;
+                if hi > 1e12 {
+                    return f64::INFINITY;
+                }
+            }
+            let mut lo = 0.0;
+            for _ in 0..60 {
+                let mid = 0.5 * (lo + hi);
+                if bound(b, l, mid) > threshold {
+                    lo = mid
+                } else {
+                    hi = mid
+                }
+            }
+            hi
+        };
+        // Edges of a pixel level share few distinct lengths (and, for the
+        // form factors, one unit radiosity): each distinct pair is bisected
+        // once (a level of millions of one-pixel edges spent seconds here).
+        let mut known: std::collections::HashMap<(u64, u64), f64> = Default::default();
         let radius: Vec<f64> = len
             .iter()
             .zip(bmax)
@@ -106,24 +130,9 @@ impl Reach {
                 if b <= 0.0 {
                     return 0.0;
                 }
-                // The bound decreases with r: bracket, then bisect.
-                let mut hi = f.sqrt_a.max(l).max(1.0);
-                while bound(b, l, hi) > threshold {
-                    hi *= 2.0;
-                    if hi > 1e12 {
-                        return f64::INFINITY;
-                    }
-                }
-                let mut lo = 0.0;
-                for _ in 0..60 {
-                    let mid = 0.5 * (lo + hi);
-                    if bound(b, l, mid) > threshold {
-                        lo = mid
-                    } else {
-                        hi = mid
-                    }
-                }
-                hi
+                *known
+                    .entry((l.to_bits(), b.to_bits()))
+                    .or_insert_with(|| radius_of(l, b))
             })
             .collect();
         let max = radius.iter().copied().fold(0.0, f64::max);
