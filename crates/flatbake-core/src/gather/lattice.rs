@@ -106,15 +106,9 @@ pub(super) fn gather(
         let last = level + 1 == STEPS.len();
         let mut now_passed = std::collections::HashSet::new();
         for &[x0, y0] in &cells {
-            let corner = [
-                (x0, y0),
-                (x0 + step, y0),
-                (x0, y0 + step),
-                (x0 + step, y0 + step),
-            ]
-            .map(|(x, y)| index(x, y).expect("a whole cell's corners are floor"));
             let probe =
                 probes(x0, y0, step).map(|(x, y)| index(x, y).expect("a whole cell is floor"));
+            let corner = [probe[0], probe[1], probe[2], probe[3]];
             // Each probe against the mean of the corners it lies between:
             // the centre (all four) and the middle of each side (two).
             let between: [&[usize]; 5] = [&[0, 1, 2, 3], &[0, 1], &[2, 3], &[0, 2], &[1, 3]];
