@@ -112,20 +112,17 @@ fn trace(
     let (mut x, mut y) = (px, py);
     let (sx, sy) = (if dx > 0.0 { 1 } else { -1 }, if dy > 0.0 { 1 } else { -1 });
     let (tdx, tdy) = (1.0 / dx.abs(), 1.0 / dy.abs());
-    let mut tmx = if dx > 0.0 {
-        (x as f64 + 1.0 - ox) / dx
-    } else if dx < 0.0 {
-        (x as f64 - ox) / dx
-    } else {
-        f64::INFINITY
+    // Ray parameter of the first pixel boundary crossed along one axis.
+    let first = |cell: i32, o: f64, d: f64| {
+        if d > 0.0 {
+            (cell as f64 + 1.0 - o) / d
+        } else if d < 0.0 {
+            (cell as f64 - o) / d
+        } else {
+            f64::INFINITY
+        }
     };
-    let mut tmy = if dy > 0.0 {
-        (y as f64 + 1.0 - oy) / dy
-    } else if dy < 0.0 {
-        (y as f64 - oy) / dy
-    } else {
-        f64::INFINITY
-    };
+    let (mut tmx, mut tmy) = (first(x, ox, dx), first(y, oy, dy));
     loop {
         let (t, n) = if tmx < tmy {
             x += sx;

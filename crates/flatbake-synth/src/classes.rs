@@ -16,7 +16,7 @@
 
 use crate::{
     CORRIDOR_FLOOR, Canvas, Floor, Painted, PaletteBuilder, ROOM_FLOORS, Rect, Rng, VOID,
-    bench_obstacles, scatter,
+    bench_obstacles, scatter, split_vertically,
 };
 
 // ---------------------------------------------------------------------------
@@ -50,17 +50,7 @@ fn partition(
         plan.rooms.push(area);
         return;
     }
-    let vertical = if can_v && can_h {
-        if area.w * 4 > area.h * 5 {
-            true
-        } else if area.h * 4 > area.w * 5 {
-            false
-        } else {
-            rng.chance(0.5)
-        }
-    } else {
-        can_v
-    };
+    let vertical = split_vertically(area, can_v, can_h, rng);
     let len = if vertical { area.w } else { area.h };
     // A stretch `[a, a + n)` across the split axis as a rectangle.
     let band = |a: i32, n: i32| {

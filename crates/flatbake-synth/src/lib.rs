@@ -900,6 +900,25 @@ impl Owner {
     }
 }
 
+/// Which way a binary space partition splits `area` (a vertical cut when
+/// true): across its longer side when one side is over 5/4 of the other,
+/// else at random; `can_v` / `can_h` say which cuts leave both halves big
+/// enough. Draws from `rng` only when both cuts fit and neither side is
+/// much longer.
+pub(crate) fn split_vertically(area: Rect, can_v: bool, can_h: bool, rng: &mut Rng) -> bool {
+    if can_v && can_h {
+        if area.w * 4 > area.h * 5 {
+            true
+        } else if area.h * 4 > area.w * 5 {
+            false
+        } else {
+            rng.chance(0.5)
+        }
+    } else {
+        can_v
+    }
+}
+
 /// Binary space partition of `area` into leaves at least `min_leaf` wide;
 /// returns the leaves under this node and records, per split, the two leaf
 /// sets a corridor must join.
@@ -919,17 +938,7 @@ fn bsp(
         leaves.push(area);
         return vec![leaves.len() - 1];
     }
-    let vertical = if can_v && can_h {
-        if area.w * 4 > area.h * 5 {
-            true
-        } else if area.h * 4 > area.w * 5 {
-            false
-        } else {
-            rng.chance(0.5)
-        }
-    } else {
-        can_v
-    };
+    let vertical = split_vertically(area, can_v, can_h, rng);
     let (a, b) = if vertical {
         let cut = rng.range(min_leaf, area.w - min_leaf + 1);
         (
