@@ -87,6 +87,9 @@ pub struct RelightArgs {
     /// Also write NAME.lightmap.exr.
     #[arg(long)]
     pub hdr: bool,
+    /// Pad the lightmaps by N texels around the floor, with coverage in alpha (0: off).
+    #[arg(long, value_name = "N", default_value_t = 0, value_parser = crate::flags::parse_padding, allow_negative_numbers = true)]
+    pub padding: u32,
     /// Print only errors.
     #[arg(long)]
     pub quiet: bool,
@@ -127,6 +130,9 @@ pub struct OutputArgs {
     /// Also write NAME.lightmap.rgbm.png (8-bit RGBM, range 6).
     #[arg(long)]
     pub rgbm: bool,
+    /// Pad the lightmaps by N texels around the floor (8 covers bilinear and 3 mip levels), with coverage in alpha (0: off).
+    #[arg(long, value_name = "N", default_value_t = 0, value_parser = crate::flags::parse_padding, allow_negative_numbers = true)]
+    pub padding: u32,
     /// Also write one lightmap per light group (NAME.layer-GROUP.exr/.png, NAME.layers.json).
     #[arg(long)]
     pub layers: bool,
@@ -434,6 +440,7 @@ pub fn batch_options(a: &BakeArgs) -> Result<BatchOptions, String> {
             Depth::Eight
         },
         rgbm: o.rgbm,
+        padding: o.padding,
         limits: LoadLimits {
             max_pixels: a.max_pixels,
         },
@@ -553,6 +560,7 @@ fn relight(a: &RelightArgs) -> u8 {
         level_image: a.level.clone(),
         layers: a.layers,
         hdr: a.hdr,
+        padding: a.padding,
     };
     match flatbake_core::batch::relight::relight(&a.cache, &opts) {
         Ok(report) => {

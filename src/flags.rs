@@ -104,6 +104,19 @@ pub fn parse_depth(s: &str) -> Result<u8, String> {
     }
 }
 
+/// Largest `--padding`: wider than any mip chain an engine filters over.
+pub const MAX_PADDING: u32 = 256;
+
+/// `--padding N`: texels, 0 to [`MAX_PADDING`].
+pub fn parse_padding(s: &str) -> Result<u32, String> {
+    match s.trim().parse::<i64>() {
+        Ok(n) if (0..=MAX_PADDING as i64).contains(&n) => Ok(n as u32),
+        _ => Err(format!(
+            "the padding is a whole number of texels from 0 to {MAX_PADDING} (8 covers bilinear filtering and 3 mip levels), not {s}"
+        )),
+    }
+}
+
 /// `--shard K/N`.
 pub fn parse_shard(s: &str) -> Result<Shard, String> {
     s.parse::<Shard>().map_err(|e| e.to_string())

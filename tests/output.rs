@@ -118,6 +118,7 @@ fn opts(exposure: f64, depth: Depth, hdr: bool, rgbm: bool) -> OutputOptions {
         depth,
         hdr,
         rgbm,
+        ..OutputOptions::default()
     }
 }
 

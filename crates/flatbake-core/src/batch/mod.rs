@@ -58,6 +58,9 @@ pub struct BatchOptions {
     pub depth: Depth,
     /// Also write `NAME.lightmap.rgbm.png`.
     pub rgbm: bool,
+    /// Padding of the lightmap outputs in texels ([`output::padding`]);
+    /// 0 (the default) pads nothing.
+    pub padding: u32,
     /// Limits checked before an image is decoded.
     pub limits: LoadLimits,
     /// Also write one layer per light group (implies the EXR lightmap).
@@ -80,8 +83,14 @@ impl BatchOptions {
     /// (not the output folder, not `force`, not the thread count), and the
     /// preset's knobs: a build that changes a preset re-bakes.
     pub fn fingerprint(&self) -> String {
+        // Options added later are spelled only when not at their default, so
+        // the stamps of bakes that do not use them stay up to date.
+        let mut added = String::new();
+        if self.padding != 0 {
+            added.push_str(&format!(" padding {}", self.padding));
+        }
         format!(
-            "{:?}{:?}",
+            "{:?}{:?}{added}",
             (
                 self.quality,
                 self.falloff,
@@ -137,6 +146,7 @@ impl BatchOptions {
             depth: self.depth,
             hdr: self.hdr || self.layers,
             rgbm: self.rgbm,
+            padding: self.padding,
         }
     }
 }
@@ -155,6 +165,7 @@ impl Default for BatchOptions {
             hdr: false,
             depth: Depth::Eight,
             rgbm: false,
+            padding: output::padding::DEFAULT_PADDING,
             limits: LoadLimits::default(),
             layers: false,
             cache: false,

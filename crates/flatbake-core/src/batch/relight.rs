@@ -77,6 +77,9 @@ pub struct RelightOptions {
     pub layers: bool,
     /// Also write the EXR lightmap.
     pub hdr: bool,
+    /// Padding of the lightmap outputs in texels ([`output::padding`]); 0
+    /// pads nothing. Not in the cache: a relight chooses its own.
+    pub padding: u32,
 }
 
 /// Relights a cache; returns the report written (`NAME.report.json`).
@@ -123,6 +126,7 @@ pub fn relight(cache_path: &Path, opts: &RelightOptions) -> Result<Report> {
         },
         hdr: opts.hdr || opts.layers,
         rgbm: cache.rgbm,
+        padding: opts.padding,
     };
     // Everything is encoded before anything is written, so that the report
     // on disk lists every file of the relight, layers included.

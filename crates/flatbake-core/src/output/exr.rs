@@ -14,16 +14,53 @@ use super::files::describe_io;
 /// compresses tiles in parallel and writes them in completion order, so the
 /// same lightmap could give different bytes from run to run.
 pub fn encode_exr_rgb32f(width: usize, height: usize, rgb: &[[f32; 3]]) -> Result<Vec<u8>, String> {
-    let (w, h) = match (i32::try_from(width), i32::try_from(height)) {
-        (Ok(w), Ok(h)) if w > 0 && h > 0 => (w, h),
-        _ => return Err(format!("an EXR image cannot be {width}x{height} pixels")),
-    };
     if rgb.len() != width * height {
         return Err(format!(
             "{} pixels given for a {width}x{height} image",
             rgb.len()
         ));
     }
+    encode_exr_f32(width, height, &[("B", 2), ("G", 1), ("R", 0)], |i, k| {
+        rgb[i][k]
+    })
+}
+
+/// Bytes of a single-part, scan-line, uncompressed OpenEXR file holding
+/// `rgba` (row-major, `width * height`) as 32-bit float R, G, B and A
+/// channels, A not premultiplied into the colour (the padded lightmap's
+/// coverage, see [`super::padding`]). Same encoder as
+/// [`encode_exr_rgb32f`], one channel more.
+pub fn encode_exr_rgba32f(
+    width: usize,
+    height: usize,
+    rgba: &[[f32; 4]],
+) -> Result<Vec<u8>, String> {
+    if rgba.len() != width * height {
+        return Err(format!(
+            "{} pixels given for a {width}x{height} image",
+            rgba.len()
+        ));
+    }
+    encode_exr_f32(
+        width,
+        height,
+        &[("A", 3), ("B", 2), ("G", 1), ("R", 0)],
+        |i, k| rgba[i][k],
+    )
+}
+
+/// The shared encoder: `channels` in alphabetical order (as OpenEXR lists
+/// and stores them), each with the index `value(pixel, index)` reads.
+fn encode_exr_f32(
+    width: usize,
+    height: usize,
+    channels: &[(&str, usize)],
+    value: impl Fn(usize, usize) -> f32,
+) -> Result<Vec<u8>, String> {
+    let (w, h) = match (i32::try_from(width), i32::try_from(height)) {
+        (Ok(w), Ok(h)) if w > 0 && h > 0 => (w, h),
+        _ => return Err(format!("an EXR image cannot be {width}x{height} pixels")),
+    };
     fn attr(out: &mut Vec<u8>, name: &str, kind: &str, value: &[u8]) {
         out.extend_from_slice(name.as_bytes());
         out.push(0);
@@ -33,13 +70,13 @@ pub fn encode_exr_rgb32f(width: usize, height: usize, rgb: &[[f32; 3]]) -> Resul
         out.extend_from_slice(value);
     }
     let le = |v: &[i32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
-    let line_bytes = width * 3 * 4;
+    let line_bytes = width * channels.len() * 4;
     let mut out = Vec::with_capacity(400 + height * (16 + line_bytes));
     out.extend_from_slice(&20000630i32.to_le_bytes()); // magic number
     out.extend_from_slice(&[2, 0, 0, 0]); // version 2, single-part scan lines
     // Channels are listed, and stored in each line, in alphabetical order.
     let mut chlist = Vec::new();
-    for name in ["B", "G", "R"] {
+    for (name, _) in channels {
         chlist.extend_from_slice(name.as_bytes());
         chlist.push(0);
         chlist.extend_from_slice(&2i32.to_le_bytes()); // FLOAT
@@ -62,12 +99,12 @@ pub fn encode_exr_rgb32f(width: usize, height: usize, rgb: &[[f32; 3]]) -> Resul
     for y in 0..height as u64 {
         out.extend_from_slice(&(first + y * (8 + line_bytes as u64)).to_le_bytes());
     }
-    for (y, row) in rgb.chunks_exact(width).enumerate() {
+    for y in 0..height {
         out.extend_from_slice(&(y as i32).to_le_bytes());
         out.extend_from_slice(&(line_bytes as i32).to_le_bytes());
-        for k in [2, 1, 0] {
-            for p in row {
-                out.extend_from_slice(&p[k].to_le_bytes());
+        for &(_, k) in channels {
+            for x in 0..width {
+                out.extend_from_slice(&value(y * width + x, k).to_le_bytes());
             }
         }
     }

@@ -147,6 +147,60 @@ pub(crate) fn sdr_image(
     }
 }
 
+/// The padded lightmap at the chosen depth: `padded` (linear, row-major,
+/// see [`super::padding::pad`]) x exposure in sRGB, alpha the coverage
+/// (opaque on floor, transparent on padding, wall and void).
+pub(crate) fn padded_sdr_image(
+    level: &Level,
+    padded: &[[f32; 3]],
+    opts: &OutputOptions,
+) -> DynamicImage {
+    let (w, h) = (level.width as u32, level.height as u32);
+    let px = |x: u32, y: u32| {
+        let i = y as usize * level.width + x as usize;
+        (
+            padded[i].map(|c| clean(c) * opts.exposure),
+            level.cells[i] == Cell::Floor,
+        )
+    };
+    match opts.depth {
+        Depth::Eight => DynamicImage::ImageRgba8(ImageBuffer::from_fn(w, h, |x, y| {
+            let (c, floor) = px(x, y);
+            Rgba([
+                srgb8(c[0]),
+                srgb8(c[1]),
+                srgb8(c[2]),
+                if floor { u8::MAX } else { 0 },
+            ])
+        })),
+        Depth::Sixteen => DynamicImage::ImageRgba16(ImageBuffer::from_fn(w, h, |x, y| {
+            let (c, floor) = px(x, y);
+            Rgba([
+                srgb16(c[0]),
+                srgb16(c[1]),
+                srgb16(c[2]),
+                if floor { u16::MAX } else { 0 },
+            ])
+        })),
+    }
+}
+
+/// The linear HDR lightmap padded by `texels` (see [`super::padding`]):
+/// [`hdr_pixels`] with the texels near the floor filled from it. With
+/// `texels == 0`, [`hdr_pixels`] itself.
+pub fn padded_hdr_pixels(
+    level: &Level,
+    map: &Lightmap,
+    texels: u32,
+) -> Result<Vec<[f32; 3]>, OutputError> {
+    let mut hdr = hdr_pixels(level, map)?;
+    if texels > 0 {
+        let floor: Vec<bool> = level.cells.iter().map(|c| *c == Cell::Floor).collect();
+        super::padding::pad(level.width, level.height, &mut hdr, &floor, texels);
+    }
+    Ok(hdr)
+}
+
 /// `NAME.lightmap.png` in memory: I(p) x exposure, sRGB, void transparent.
 pub fn lightmap_image(
     level: &Level,
@@ -192,12 +246,15 @@ pub fn hdr_pixels(level: &Level, map: &Lightmap) -> Result<Vec<[f32; 3]>, Output
 /// [`rgbm_encode`] (so solid and void pixels decode to 0, as in the EXR).
 pub fn rgbm_image(level: &Level, map: &Lightmap) -> Result<RgbaImage, OutputError> {
     let hdr = hdr_pixels(level, map)?;
+    Ok(rgbm_image_of(level, &hdr))
+}
+
+/// RGBM (linear, [`rgbm_encode`]) of linear HDR pixels of `level`'s size.
+pub(crate) fn rgbm_image_of(level: &Level, hdr: &[[f32; 3]]) -> RgbaImage {
     let w = level.width;
-    Ok(ImageBuffer::from_fn(
-        level.width as u32,
-        level.height as u32,
-        |x, y| Rgba(rgbm_encode(hdr[y as usize * w + x as usize])),
-    ))
+    ImageBuffer::from_fn(level.width as u32, level.height as u32, |x, y| {
+        Rgba(rgbm_encode(hdr[y as usize * w + x as usize]))
+    })
 }
 
 /// PNG bytes of any image (8 or 16 bits per channel, as the image holds).

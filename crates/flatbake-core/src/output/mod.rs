@@ -18,6 +18,7 @@ pub mod files;
 pub mod image;
 pub mod layers;
 pub mod names;
+pub mod padding;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -25,13 +26,13 @@ use std::time::Instant;
 use ::image::DynamicImage;
 
 pub use self::exposure::Exposure;
-pub use self::exr::{encode_exr_rgb32f, read_lightmap_exr};
+pub use self::exr::{encode_exr_rgb32f, encode_exr_rgba32f, read_lightmap_exr};
 pub use self::files::{
     OutputError, StagedFile, ensure_output_dir, write_atomic, write_file_atomic,
 };
 pub use self::image::{
     RGBM_RANGE, encode_png, encode_png_rgba8, encode_png_rgba16, hdr_pixels, lightmap_image,
-    lit_image, rgbm_decode, rgbm_encode, rgbm_image, srgb8, srgb16,
+    lit_image, padded_hdr_pixels, rgbm_decode, rgbm_encode, rgbm_image, srgb8, srgb16,
 };
 pub use self::names::OutputKind;
 pub use crate::bake::Lightmap;
@@ -61,6 +62,12 @@ pub struct OutputOptions {
     pub hdr: bool,
     /// Also write `NAME.lightmap.rgbm.png` (see [`rgbm_encode`]). Default off.
     pub rgbm: bool,
+    /// Padding of the lightmap outputs (PNG, EXR, RGBM) in texels, see
+    /// [`padding`]: non-floor texels within this many of the floor are
+    /// filled from it, and the lightmap PNG's alpha and an EXR `A` channel
+    /// give the coverage (1 floor, 0 elsewhere). 0 (the default,
+    /// [`padding::DEFAULT_PADDING`]) writes the lightmaps as without it.
+    pub padding: u32,
 }
 
 impl Default for OutputOptions {
@@ -70,6 +77,7 @@ impl Default for OutputOptions {
             depth: Depth::Eight,
             hdr: false,
             rgbm: false,
+            padding: padding::DEFAULT_PADDING,
         }
     }
 }
@@ -85,7 +93,8 @@ pub struct Encoded {
 
 /// Encodes the image outputs of one level in memory, in writing order:
 /// `NAME.lightmap.png`, `NAME.lit.png`, with `opts.hdr` `NAME.lightmap.exr`,
-/// with `opts.rgbm` `NAME.lightmap.rgbm.png`.
+/// with `opts.rgbm` `NAME.lightmap.rgbm.png`. With `opts.padding > 0` the
+/// lightmap outputs (not the lit image) are padded ([`padding`]).
 pub fn encode_images(
     level: &Level,
     map: &Lightmap,
@@ -104,24 +113,47 @@ pub fn encode_images(
                 message: e.to_string(),
             })
     };
+    let padded = if opts.padding > 0 {
+        Some(padded_hdr_pixels(level, map, opts.padding)?)
+    } else {
+        None
+    };
     // The two images are independent: encoded side by side (the end of a
     // bake leaves the other cores idle, and deflate is most of the time).
     let (lightmap, lit) = rayon::join(
         || {
-            png(
-                OutputKind::Lightmap,
-                &image::sdr_image(level, map, opts, false),
-            )
+            let img = match &padded {
+                Some(p) => image::padded_sdr_image(level, p, opts),
+                None => image::sdr_image(level, map, opts, false),
+            };
+            png(OutputKind::Lightmap, &img)
         },
         || png(OutputKind::Lit, &image::sdr_image(level, map, opts, true)),
     );
     let mut files = vec![lightmap?, lit?];
     if opts.hdr {
-        let bytes = encode_exr_rgb32f(level.width, level.height, &hdr_pixels(level, map)?)
-            .map_err(|message| OutputError::Encode {
-                path: OutputKind::Hdr.file_name(name).into(),
-                message,
-            })?;
+        let bytes = match &padded {
+            Some(p) => {
+                let rgba: Vec<[f32; 4]> = p
+                    .iter()
+                    .zip(&level.cells)
+                    .map(|(c, cell)| {
+                        let a = if *cell == crate::level::Cell::Floor {
+                            1.0
+                        } else {
+                            0.0
+                        };
+                        [c[0], c[1], c[2], a]
+                    })
+                    .collect();
+                encode_exr_rgba32f(level.width, level.height, &rgba)
+            }
+            None => encode_exr_rgb32f(level.width, level.height, &hdr_pixels(level, map)?),
+        }
+        .map_err(|message| OutputError::Encode {
+            path: OutputKind::Hdr.file_name(name).into(),
+            message,
+        })?;
         files.push(Encoded {
             kind: OutputKind::Hdr,
             bytes,
@@ -130,7 +162,10 @@ pub fn encode_images(
     if opts.rgbm {
         files.push(png(
             OutputKind::Rgbm,
-            &DynamicImage::ImageRgba8(rgbm_image(level, map)?),
+            &DynamicImage::ImageRgba8(match &padded {
+                Some(p) => image::rgbm_image_of(level, p),
+                None => rgbm_image(level, map)?,
+            }),
         )?);
     }
     Ok(files)

@@ -1,0 +1,241 @@
+//! Padded lightmaps (`OutputOptions::padding`): bilinear filtering next to
+//! a wall stays within the floor's light, the coverage channel marks the
+//! floor exactly, and the padding reaches as far as asked and no further.
+
+mod common;
+use common::*;
+
+use flatbake_core::bake::{Settings, bake};
+use flatbake_core::level::{Cell, Level};
+use flatbake_core::output::{
+    Encoded, OutputKind, OutputOptions, encode_images, padded_hdr_pixels, rgbm_decode,
+};
+use flatbake_core::quality::Quality;
+
+fn quiet(_: &str) {}
+
+/// A lit room in a margin of void: an emitter in the top wall, a pillar
+/// that casts a shadow, and a one-pixel partition with a gap.
+fn level() -> Level {
+    let (w, h, m) = (30usize, 20usize, 4usize);
+    let rows: Vec<String> = (0..h)
+        .map(|y| {
+            (0..w)
+                .map(|x| {
+                    let inside = x >= m && y >= m && x < w - m && y < h - m;
+                    let ring = inside && (x == m || y == m || x == w - m - 1 || y == h - m - 1);
+                    if !inside {
+                        ' '
+                    } else if ring && y == m && (8..12).contains(&x) {
+                        'L'
+                    } else if ring
+                        || ((11..13).contains(&x) && (9..11).contains(&y))
+                        || (x == 19 && y < 12)
+                    {
+                        '#'
+                    } else {
+                        '.'
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    ascii(&refs(&rows), &[('#', wall(0.5)), ('L', light(4.0, 0.5))])
+}
+
+fn floor_mask(lvl: &Level) -> Vec<bool> {
+    lvl.cells.iter().map(|c| *c == Cell::Floor).collect()
+}
+
+/// Bilinear sample of `v` at continuous texel coordinates (texel centres at
+/// integers), clamped to the edge.
+fn bilinear(v: &[[f32; 3]], w: usize, h: usize, x: f64, y: f64) -> [f64; 3] {
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x0, y - y0);
+    let at = |xi: f64, yi: f64| {
+        let xi = xi.clamp(0.0, (w - 1) as f64) as usize;
+        let yi = yi.clamp(0.0, (h - 1) as f64) as usize;
+        v[yi * w + xi].map(f64::from)
+    };
+    let (a, b, c, d) = (
+        at(x0, y0),
+        at(x0 + 1.0, y0),
+        at(x0, y0 + 1.0),
+        at(x0 + 1.0, y0 + 1.0),
+    );
+    [0, 1, 2].map(|k| {
+        (1.0 - fy) * ((1.0 - fx) * a[k] + fx * b[k]) + fy * ((1.0 - fx) * c[k] + fx * d[k])
+    })
+}
+
+/// Samples between every floor texel and each non-floor 8-neighbour (a
+/// quarter, half and three quarters of the way) that leave the range of
+/// the floor values within 2 texels of that floor texel.
+fn bleeding_samples(v: &[[f32; 3]], lvl: &Level) -> usize {
+    let (w, h) = (lvl.width, lvl.height);
+    let floor = floor_mask(lvl);
+    let mut bad = 0;
+    for y in 0..h {
+        for x in 0..w {
+            if !floor[y * w + x] {
+                continue;
+            }
+            let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+            for yy in y.saturating_sub(2)..(y + 3).min(h) {
+                for xx in x.saturating_sub(2)..(x + 3).min(w) {
+                    if floor[yy * w + xx] {
+                        for k in 0..3 {
+                            lo[k] = lo[k].min(v[yy * w + xx][k] as f64);
+                            hi[k] = hi[k].max(v[yy * w + xx][k] as f64);
+                        }
+                    }
+                }
+            }
+            for (dx, dy) in [
+                (-1i64, -1i64),
+                (0, -1),
+                (1, -1),
+                (-1, 0),
+                (1, 0),
+                (-1, 1),
+                (0, 1),
+                (1, 1),
+            ] {
+                let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                if nx < 0 || ny < 0 || nx >= w as i64 || ny >= h as i64 {
+                    continue;
+                }
+                if floor[ny as usize * w + nx as usize] {
+                    continue;
+                }
+                for t in [0.25, 0.5, 0.75] {
+                    let s = bilinear(v, w, h, x as f64 + t * dx as f64, y as f64 + t * dy as f64);
+                    for k in 0..3 {
+                        let tol = 1e-6 * hi[k].abs().max(1e-30);
+                        if s[k] < lo[k] - tol || s[k] > hi[k] + tol {
+                            bad += 1;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    bad
+}
+
+fn baked() -> (Level, flatbake_core::output::Lightmap) {
+    let lvl = level();
+    let baked = bake(&lvl, &Settings::new(Quality::Draft), &quiet).expect("bake");
+    (lvl, baked.lightmap)
+}
+
+#[test]
+fn bilinear_next_to_a_wall_stays_within_the_floor_range() {
+    let (lvl, map) = baked();
+    let padded = padded_hdr_pixels(&lvl, &map, 8).expect("pad");
+    assert_eq!(bleeding_samples(&padded, &lvl), 0);
+    // The check can fail: without padding the walls are black (HDR) or
+    // glow (the lightmap PNG shows solid pixels' radiosity), and both bleed.
+    let black = padded_hdr_pixels(&lvl, &map, 0).expect("unpadded");
+    assert!(bleeding_samples(&black, &lvl) > 0);
+    assert!(bleeding_samples(&map.rgb, &lvl) > 0);
+}
+
+#[test]
+#[allow(clippy::needless_range_loop)]
+fn padding_reaches_its_width_and_no_further() {
+    let (lvl, map) = baked();
+    let (w, h) = (lvl.width, lvl.height);
+    let floor = floor_mask(&lvl);
+    for n in [1u32, 2, 3] {
+        let p = padded_hdr_pixels(&lvl, &map, n).expect("pad");
+        for y in 0..h {
+            for x in 0..w {
+                let i = y * w + x;
+                if floor[i] {
+                    assert_eq!(p[i], map.rgb[i], "floor texel ({x},{y}) changed");
+                    continue;
+                }
+                // Chebyshev distance to the floor and the floor range within it.
+                let mut d = usize::MAX;
+                for (j, _) in floor.iter().enumerate().filter(|(_, f)| **f) {
+                    let (fx, fy) = (j % w, j / w);
+                    d = d.min(fx.abs_diff(x).max(fy.abs_diff(y)));
+                }
+                if d > n as usize {
+                    assert_eq!(p[i], [0.0; 3], "({x},{y}) is {d} from the floor");
+                    continue;
+                }
+                for k in 0..3 {
+                    let near = floor
+                        .iter()
+                        .enumerate()
+                        .filter(|(j, f)| **f && (j % w).abs_diff(x).max((j / w).abs_diff(y)) <= d);
+                    let (lo, hi) = near
+                        .fold((f32::INFINITY, f32::NEG_INFINITY), |(l, u), (j, _)| {
+                            (l.min(map.rgb[j][k]), u.max(map.rgb[j][k]))
+                        });
+                    let tol = 1e-6 * hi.abs();
+                    assert!(
+                        p[i][k] >= lo - tol && p[i][k] <= hi + tol,
+                        "({x},{y}) padded {} outside [{lo}, {hi}]",
+                        p[i][k]
+                    );
+                }
+            }
+        }
+    }
+}
+
+fn file(files: &[Encoded], kind: OutputKind) -> &[u8] {
+    &files.iter().find(|f| f.kind == kind).expect("output").bytes
+}
+
+#[test]
+fn coverage_marks_the_floor_exactly_in_png_and_exr() {
+    let (lvl, map) = baked();
+    let floor = floor_mask(&lvl);
+    let opts = OutputOptions {
+        hdr: true,
+        rgbm: true,
+        padding: 8,
+        ..OutputOptions::default()
+    };
+    let files = encode_images(&lvl, &map, &opts).expect("encode");
+    let padded = padded_hdr_pixels(&lvl, &map, 8).expect("pad");
+
+    let png = image::load_from_memory(file(&files, OutputKind::Lightmap))
+        .expect("png")
+        .into_rgba8();
+    for (p, f) in png.pixels().zip(&floor) {
+        assert_eq!(p.0[3], if *f { 255 } else { 0 });
+    }
+    let exr = image::load_from_memory_with_format(
+        file(&files, OutputKind::Hdr),
+        image::ImageFormat::OpenExr,
+    )
+    .expect("exr")
+    .into_rgba32f();
+    for ((p, f), want) in exr.pixels().zip(&floor).zip(&padded) {
+        assert_eq!(p.0[3], if *f { 1.0 } else { 0.0 });
+        assert_eq!([p.0[0], p.0[1], p.0[2]], *want);
+    }
+    let rgbm = image::load_from_memory(file(&files, OutputKind::Rgbm))
+        .expect("rgbm")
+        .into_rgba8();
+    for (p, want) in rgbm.pixels().zip(&padded) {
+        let got = rgbm_decode(p.0);
+        for k in 0..3 {
+            // One 8-bit step of the pixel's multiplier.
+            let step = p.0[3] as f32 / 255.0 * 6.0 / 255.0;
+            assert!((got[k] - want[k].min(6.0)).abs() <= step * 0.5 + 1e-6);
+        }
+    }
+    // The lit image is not padded.
+    let plain = encode_images(&lvl, &map, &OutputOptions::default()).expect("encode");
+    assert_eq!(file(&files, OutputKind::Lit), file(&plain, OutputKind::Lit));
+    assert_ne!(
+        file(&files, OutputKind::Lightmap),
+        file(&plain, OutputKind::Lightmap)
+    );
+}
