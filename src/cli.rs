@@ -87,6 +87,9 @@ pub struct RelightArgs {
     /// Also write NAME.lightmap.exr.
     #[arg(long)]
     pub hdr: bool,
+    /// Also write NAME.lightmap.rgbm-unity.png (Unity's RGBM: range 5, gamma space).
+    #[arg(long)]
+    pub rgbm_unity: bool,
     /// Pad the lightmaps by N texels around the floor, with coverage in alpha (0: off).
     #[arg(long, value_name = "N", default_value_t = 0, value_parser = crate::flags::parse_padding, allow_negative_numbers = true)]
     pub padding: u32,
@@ -130,6 +133,9 @@ pub struct OutputArgs {
     /// Also write NAME.lightmap.rgbm.png (8-bit RGBM, range 6).
     #[arg(long)]
     pub rgbm: bool,
+    /// Also write NAME.lightmap.rgbm-unity.png (Unity's RGBM: range 5, gamma space).
+    #[arg(long)]
+    pub rgbm_unity: bool,
     /// Pad the lightmaps by N texels around the floor (8 covers bilinear and 3 mip levels), with coverage in alpha (0: off).
     #[arg(long, value_name = "N", default_value_t = 0, value_parser = crate::flags::parse_padding, allow_negative_numbers = true)]
     pub padding: u32,
@@ -440,6 +446,7 @@ pub fn batch_options(a: &BakeArgs) -> Result<BatchOptions, String> {
             Depth::Eight
         },
         rgbm: o.rgbm,
+        rgbm_unity: o.rgbm_unity,
         padding: o.padding,
         limits: LoadLimits {
             max_pixels: a.max_pixels,
@@ -561,6 +568,7 @@ fn relight(a: &RelightArgs) -> u8 {
         layers: a.layers,
         hdr: a.hdr,
         padding: a.padding,
+        rgbm_unity: a.rgbm_unity,
     };
     match flatbake_core::batch::relight::relight(&a.cache, &opts) {
         Ok(report) => {

@@ -58,6 +58,8 @@ pub struct BatchOptions {
     pub depth: Depth,
     /// Also write `NAME.lightmap.rgbm.png`.
     pub rgbm: bool,
+    /// Also write `NAME.lightmap.rgbm-unity.png` (Unity's RGBM).
+    pub rgbm_unity: bool,
     /// Padding of the lightmap outputs in texels ([`output::padding`]);
     /// 0 (the default) pads nothing.
     pub padding: u32,
@@ -88,6 +90,9 @@ impl BatchOptions {
         let mut added = String::new();
         if self.padding != 0 {
             added.push_str(&format!(" padding {}", self.padding));
+        }
+        if self.rgbm_unity {
+            added.push_str(" rgbm-unity");
         }
         format!(
             "{:?}{:?}{added}",
@@ -146,6 +151,7 @@ impl BatchOptions {
             depth: self.depth,
             hdr: self.hdr || self.layers,
             rgbm: self.rgbm,
+            rgbm_unity: self.rgbm_unity,
             padding: self.padding,
         }
     }
@@ -165,6 +171,7 @@ impl Default for BatchOptions {
             hdr: false,
             depth: Depth::Eight,
             rgbm: false,
+            rgbm_unity: false,
             padding: output::padding::DEFAULT_PADDING,
             limits: LoadLimits::default(),
             layers: false,

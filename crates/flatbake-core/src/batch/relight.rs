@@ -80,6 +80,9 @@ pub struct RelightOptions {
     /// Padding of the lightmap outputs in texels ([`output::padding`]); 0
     /// pads nothing. Not in the cache: a relight chooses its own.
     pub padding: u32,
+    /// Also write the Unity-convention RGBM lightmap (not in the cache
+    /// either).
+    pub rgbm_unity: bool,
 }
 
 /// Relights a cache; returns the report written (`NAME.report.json`).
@@ -126,6 +129,7 @@ pub fn relight(cache_path: &Path, opts: &RelightOptions) -> Result<Report> {
         },
         hdr: opts.hdr || opts.layers,
         rgbm: cache.rgbm,
+        rgbm_unity: opts.rgbm_unity,
         padding: opts.padding,
     };
     // Everything is encoded before anything is written, so that the report

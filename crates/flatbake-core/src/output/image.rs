@@ -42,9 +42,12 @@ pub fn srgb16(v: f64) -> u16 {
 /// Encodes linear RGB as RGBM (see [`RGBM_RANGE`] for the convention).
 /// Non-finite and negative channels encode as 0.
 pub fn rgbm_encode(rgb: [f32; 3]) -> [u8; 4] {
-    let c = rgb.map(clean);
+    rgbm_encode_range(rgb.map(clean), RGBM_RANGE as f64)
+}
+
+/// RGBM of non-negative channels `c` with multiplier range `range`.
+fn rgbm_encode_range(c: [f64; 3], range: f64) -> [u8; 4] {
     let max = c[0].max(c[1]).max(c[2]);
-    let range = RGBM_RANGE as f64;
     let m = (max / range * 255.0).ceil().clamp(1.0, 255.0);
     let scale = m / 255.0 * range;
     let q = c.map(|v| ((v / scale).min(1.0) * 255.0).round() as u8);
@@ -55,6 +58,39 @@ pub fn rgbm_encode(rgb: [f32; 3]) -> [u8; 4] {
 pub fn rgbm_decode(p: [u8; 4]) -> [f32; 3] {
     let m = p[3] as f32 / 255.0 * RGBM_RANGE;
     [p[0], p[1], p[2]].map(|c| c as f32 / 255.0 * m)
+}
+
+/// Range of Unity's RGBM: the largest gamma-space value it holds
+/// (`UNITY_RGBM_RANGE^UNITY_RGBM_GAMMA`, about 34.5, in linear light).
+pub const UNITY_RGBM_RANGE: f32 = 5.0;
+
+/// The gamma of Unity's RGBM: values are stored as `v^(1/2.2)`.
+pub const UNITY_RGBM_GAMMA: f32 = 2.2;
+
+/// Encodes linear RGB as RGBM in Unity's convention (`DecodeLightmapRGBM`
+/// in UnityCG.cginc): each channel goes to gamma space as
+/// `g = v^(1/UNITY_RGBM_GAMMA)`, then `g` is encoded as [`rgbm_encode`]
+/// does with range [`UNITY_RGBM_RANGE`] instead of [`RGBM_RANGE`]. Decode
+/// with [`rgbm_unity_decode`]: `(rgb * a * 5)^2.2`. Linear values above
+/// `5^2.2` (about 34.5) clamp to it; non-finite and negative channels
+/// encode as 0.
+///
+/// Error bound: in gamma space each channel is within half a step of its
+/// pixel's multiplier, `|g' - g| <= 5 a / 510` with `a = M` the stored
+/// alpha in `[0, 1]` (`M <= max(g) / 5 + 1/255`), so in linear light
+/// `|v' - v| <= (g + 5 a / 510)^2.2 - g^2.2`: about
+/// `2.2 / 510 * (1 + 0.02 / max(g))` of the pixel's brightest channel, at
+/// most 0.5 % of it when that channel is 0.01 or more (0.48 % measured).
+pub fn rgbm_unity_encode(rgb: [f32; 3]) -> [u8; 4] {
+    let gamma = 1.0 / UNITY_RGBM_GAMMA as f64;
+    rgbm_encode_range(rgb.map(|v| clean(v).powf(gamma)), UNITY_RGBM_RANGE as f64)
+}
+
+/// Decodes a Unity-convention RGBM pixel ([`rgbm_unity_encode`]) to linear
+/// RGB: `(rgb * a * UNITY_RGBM_RANGE)^UNITY_RGBM_GAMMA`.
+pub fn rgbm_unity_decode(p: [u8; 4]) -> [f32; 3] {
+    let m = p[3] as f32 / 255.0 * UNITY_RGBM_RANGE;
+    [p[0], p[1], p[2]].map(|c| (c as f32 / 255.0 * m).powf(UNITY_RGBM_GAMMA))
 }
 
 /// Rejects a level and lightmap that do not describe the same pixels, or no
@@ -251,9 +287,18 @@ pub fn rgbm_image(level: &Level, map: &Lightmap) -> Result<RgbaImage, OutputErro
 
 /// RGBM (linear, [`rgbm_encode`]) of linear HDR pixels of `level`'s size.
 pub(crate) fn rgbm_image_of(level: &Level, hdr: &[[f32; 3]]) -> RgbaImage {
+    rgbm_image_with(level, hdr, rgbm_encode)
+}
+
+/// `hdr` (linear, `level`'s size) with each pixel encoded by `encode`.
+pub(crate) fn rgbm_image_with(
+    level: &Level,
+    hdr: &[[f32; 3]],
+    encode: fn([f32; 3]) -> [u8; 4],
+) -> RgbaImage {
     let w = level.width;
     ImageBuffer::from_fn(level.width as u32, level.height as u32, |x, y| {
-        Rgba(rgbm_encode(hdr[y as usize * w + x as usize]))
+        Rgba(encode(hdr[y as usize * w + x as usize]))
     })
 }
 

@@ -31,8 +31,9 @@ pub use self::files::{
     OutputError, StagedFile, ensure_output_dir, write_atomic, write_file_atomic,
 };
 pub use self::image::{
-    RGBM_RANGE, encode_png, encode_png_rgba8, encode_png_rgba16, hdr_pixels, lightmap_image,
-    lit_image, padded_hdr_pixels, rgbm_decode, rgbm_encode, rgbm_image, srgb8, srgb16,
+    RGBM_RANGE, UNITY_RGBM_GAMMA, UNITY_RGBM_RANGE, encode_png, encode_png_rgba8,
+    encode_png_rgba16, hdr_pixels, lightmap_image, lit_image, padded_hdr_pixels, rgbm_decode,
+    rgbm_encode, rgbm_image, rgbm_unity_decode, rgbm_unity_encode, srgb8, srgb16,
 };
 pub use self::names::OutputKind;
 pub use crate::bake::Lightmap;
@@ -62,6 +63,10 @@ pub struct OutputOptions {
     pub hdr: bool,
     /// Also write `NAME.lightmap.rgbm.png` (see [`rgbm_encode`]). Default off.
     pub rgbm: bool,
+    /// Also write `NAME.lightmap.rgbm-unity.png`: RGBM in Unity's
+    /// convention, range 5 in gamma space (see [`rgbm_unity_encode`]).
+    /// Default off.
+    pub rgbm_unity: bool,
     /// Padding of the lightmap outputs (PNG, EXR, RGBM) in texels, see
     /// [`padding`]: non-floor texels within this many of the floor are
     /// filled from it, and the lightmap PNG's alpha and an EXR `A` channel
@@ -77,6 +82,7 @@ impl Default for OutputOptions {
             depth: Depth::Eight,
             hdr: false,
             rgbm: false,
+            rgbm_unity: false,
             padding: padding::DEFAULT_PADDING,
         }
     }
@@ -93,7 +99,8 @@ pub struct Encoded {
 
 /// Encodes the image outputs of one level in memory, in writing order:
 /// `NAME.lightmap.png`, `NAME.lit.png`, with `opts.hdr` `NAME.lightmap.exr`,
-/// with `opts.rgbm` `NAME.lightmap.rgbm.png`. With `opts.padding > 0` the
+/// with `opts.rgbm` `NAME.lightmap.rgbm.png`, with `opts.rgbm_unity`
+/// `NAME.lightmap.rgbm-unity.png`. With `opts.padding > 0` the
 /// lightmap outputs (not the lit image) are padded ([`padding`]).
 pub fn encode_images(
     level: &Level,
@@ -166,6 +173,16 @@ pub fn encode_images(
                 Some(p) => image::rgbm_image_of(level, p),
                 None => rgbm_image(level, map)?,
             }),
+        )?);
+    }
+    if opts.rgbm_unity {
+        let hdr = match padded {
+            Some(p) => p,
+            None => hdr_pixels(level, map)?,
+        };
+        files.push(png(
+            OutputKind::RgbmUnity,
+            &DynamicImage::ImageRgba8(image::rgbm_image_with(level, &hdr, rgbm_unity_encode)),
         )?);
     }
     Ok(files)

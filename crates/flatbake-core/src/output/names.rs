@@ -51,6 +51,8 @@ pub enum OutputKind {
     Hdr,
     /// `NAME.lightmap.rgbm.png`
     Rgbm,
+    /// `NAME.lightmap.rgbm-unity.png`: RGBM in Unity's convention.
+    RgbmUnity,
     /// `NAME.report.json`
     Report,
     /// `NAME.stamp.json`: what the outputs were made from (incremental bakes).
@@ -73,6 +75,7 @@ impl OutputKind {
             OutputKind::Lit => "lit.png".into(),
             OutputKind::Hdr => "lightmap.exr".into(),
             OutputKind::Rgbm => "lightmap.rgbm.png".into(),
+            OutputKind::RgbmUnity => "lightmap.rgbm-unity.png".into(),
             OutputKind::Report => "report.json".into(),
             OutputKind::Stamp => "stamp.json".into(),
             OutputKind::Cache => "flatbake".into(),
