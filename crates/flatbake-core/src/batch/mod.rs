@@ -73,6 +73,9 @@ pub struct BatchOptions {
     /// Bake only this shard of the levels ([`shard`]); `None`: all of them.
     /// Not part of the stamp: a level's outputs do not depend on it.
     pub shard: Option<Shard>,
+    /// Also write the wall loops as occluder polygons simplified within
+    /// this many pixels ([`output::occluders`]); `None`: not written.
+    pub occluders: Option<f64>,
 }
 
 impl BatchOptions {
@@ -80,8 +83,12 @@ impl BatchOptions {
     /// (not the output folder, not `force`, not the thread count), and the
     /// preset's knobs: a build that changes a preset re-bakes.
     pub fn fingerprint(&self) -> String {
+        let occluders = match self.occluders {
+            Some(t) => format!(" occluders {t:?}"),
+            None => String::new(),
+        };
         format!(
-            "{:?}{:?}",
+            "{:?}{:?}{occluders}",
             (
                 self.quality,
                 self.falloff,
@@ -161,6 +168,7 @@ impl Default for BatchOptions {
             force: false,
             max_memory: None,
             shard: None,
+            occluders: None,
         }
     }
 }
@@ -565,6 +573,13 @@ pub fn bake_one(path: &Path, opts: &BatchOptions, observer: &dyn Observer) -> Re
                 bytes,
             });
         }
+    }
+    if let Some(tolerance) = opts.occluders {
+        extra.extend(output::occluders::encode_occluders(
+            &level.name,
+            &baked.geometry,
+            tolerance,
+        )?);
     }
     // One transaction: every output staged first (a full disk replaces
     // nothing), the stamp removed before the renames, the new stamp last.

@@ -18,6 +18,7 @@ pub mod files;
 pub mod image;
 pub mod layers;
 pub mod names;
+pub mod occluders;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
