@@ -22,7 +22,7 @@ use flatbake_core::quality::Quality;
 
 use crate::flags::{
     FalloffArg, parse_bounces, parse_debounce, parse_depth, parse_falloff, parse_jobs,
-    parse_max_pixels, parse_shard,
+    parse_max_pixels, parse_occluder_tolerance, parse_shard,
 };
 
 /// Exit status when every level baked.
@@ -145,6 +145,12 @@ pub struct OutputArgs {
     /// Also write NAME.flatbake, the cache `flatbake relight` reads.
     #[arg(long)]
     pub cache: bool,
+    /// Also write the walls as simplified polygons for live lights (NAME.occluders.json/.svg/.tres).
+    #[arg(long)]
+    pub occluders: bool,
+    /// How far (pixels) an occluder outline may stray from the traced walls.
+    #[arg(long, value_name = "PX", default_value_t = flatbake_core::output::occluders::DEFAULT_TOLERANCE, value_parser = parse_occluder_tolerance, allow_negative_numbers = true)]
+    pub occluder_tolerance: f64,
     /// Bits per channel of the PNG outputs.
     #[arg(long, value_name = "BITS", default_value_t = 8, value_parser = parse_depth, allow_negative_numbers = true)]
     pub depth: u8,
@@ -456,6 +462,7 @@ pub fn batch_options(a: &BakeArgs) -> Result<BatchOptions, String> {
         force: a.force,
         max_memory: a.max_memory.bytes(),
         shard: a.shard,
+        occluders: o.occluders.then_some(o.occluder_tolerance),
     })
 }
 

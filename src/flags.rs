@@ -42,6 +42,16 @@ pub fn parse_falloff(s: &str) -> Result<FalloffArg, String> {
     }
 }
 
+/// `--occluder-tolerance PX`: 0 or more pixels.
+pub fn parse_occluder_tolerance(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(d) if d.is_finite() && d >= 0.0 => Ok(d),
+        _ => Err(format!(
+            "--occluder-tolerance takes a number of pixels, 0 or more (such as 0.75), not {s}"
+        )),
+    }
+}
+
 /// A whole number from `lo` to `hi` for `flag`; `what` says what it counts.
 fn whole_number(flag: &str, what: &str, lo: u64, hi: u64, s: &str) -> Result<u64, String> {
     match s.trim().parse::<u64>() {

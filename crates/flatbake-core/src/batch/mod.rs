@@ -78,6 +78,9 @@ pub struct BatchOptions {
     /// Bake only this shard of the levels ([`shard`]); `None`: all of them.
     /// Not part of the stamp: a level's outputs do not depend on it.
     pub shard: Option<Shard>,
+    /// Also write the wall loops as occluder polygons simplified within
+    /// this many pixels ([`output::occluders`]); `None`: not written.
+    pub occluders: Option<f64>,
 }
 
 impl BatchOptions {
@@ -93,6 +96,9 @@ impl BatchOptions {
         }
         if self.rgbm_unity {
             added.push_str(" rgbm-unity");
+        }
+        if let Some(t) = self.occluders {
+            added.push_str(&format!(" occluders {t:?}"));
         }
         format!(
             "{:?}{:?}{added}",
@@ -179,6 +185,7 @@ impl Default for BatchOptions {
             force: false,
             max_memory: None,
             shard: None,
+            occluders: None,
         }
     }
 }
@@ -583,6 +590,13 @@ pub fn bake_one(path: &Path, opts: &BatchOptions, observer: &dyn Observer) -> Re
                 bytes,
             });
         }
+    }
+    if let Some(tolerance) = opts.occluders {
+        extra.extend(output::occluders::encode_occluders(
+            &level.name,
+            &baked.geometry,
+            tolerance,
+        )?);
     }
     // One transaction: every output staged first (a full disk replaces
     // nothing), the stamp removed before the renames, the new stamp last.

@@ -18,6 +18,7 @@ pub mod files;
 pub mod image;
 pub mod layers;
 pub mod names;
+pub mod occluders;
 pub mod padding;
 
 use std::path::{Path, PathBuf};

@@ -65,6 +65,12 @@ pub enum OutputKind {
     LayerExr(String),
     /// `NAME.layer-TAG.png`: one light group's sRGB preview.
     LayerPng(String),
+    /// `NAME.occluders.json`: the wall loops as simplified polygons.
+    OccludersJson,
+    /// `NAME.occluders.svg`: the occluder polygons, to look at.
+    OccludersSvg,
+    /// `NAME.occluders.tres`: the occluder polygons as Godot `OccluderPolygon2D`s.
+    OccludersTres,
 }
 
 impl OutputKind {
@@ -82,6 +88,9 @@ impl OutputKind {
             OutputKind::LayersManifest => "layers.json".into(),
             OutputKind::LayerExr(tag) => format!("layer-{tag}.exr"),
             OutputKind::LayerPng(tag) => format!("layer-{tag}.png"),
+            OutputKind::OccludersJson => "occluders.json".into(),
+            OutputKind::OccludersSvg => "occluders.svg".into(),
+            OutputKind::OccludersTres => "occluders.tres".into(),
         }
     }
 
