@@ -461,3 +461,87 @@ pub fn encode_occluders(
         },
     ])
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn segments_meet_only_at_shared_end_points() {
+        let s = ([0, 0], [4, 0]);
+        // Crossing, touching inside, overlapping, identical: conflicts.
+        assert!(segments_conflict(s, ([2, -1], [2, 1])));
+        assert!(segments_conflict(s, ([2, 0], [2, 3])));
+        assert!(segments_conflict(s, ([3, 0], [6, 0])));
+        assert!(segments_conflict(s, ([4, 0], [0, 0])));
+        // Sharing an end point, collinear end to end, apart: fine.
+        assert!(!segments_conflict(s, ([4, 0], [5, 3])));
+        assert!(!segments_conflict(s, ([4, 0], [7, 0])));
+        assert!(!segments_conflict(s, ([0, 1], [4, 1])));
+    }
+
+    #[test]
+    fn the_godot_resource_lists_one_polygon_per_loop() {
+        let occ = Occluders {
+            width: 4,
+            height: 3,
+            tolerance: 0.75,
+            polygons: vec![
+                Occluder {
+                    points: vec![[1, 1], [1, 2], [3, 2], [3, 1]],
+                    solid_inside: false,
+                    traced_vertices: 4,
+                },
+                Occluder {
+                    points: vec![[0, 0], [0, 1], [1, 0]],
+                    solid_inside: true,
+                    traced_vertices: 6,
+                },
+            ],
+        };
+        let tres = String::from_utf8(to_tres(&occ)).expect("utf-8");
+        assert!(tres.starts_with("[gd_resource type=\"Resource\" load_steps=3 format=3]\n"));
+        assert!(tres.contains("polygon = PackedVector2Array(1, 1, 1, 2, 3, 2, 3, 1)\n"));
+        assert!(tres.contains(
+            "metadata/occluders = [SubResource(\"OccluderPolygon2D_0\"), SubResource(\"OccluderPolygon2D_1\")]"
+        ));
+        let json: serde_json::Value =
+            serde_json::from_slice(&to_json(&occ).expect("json")).expect("parses");
+        assert_eq!(
+            json["polygons"][1]["points"],
+            serde_json::json!([[0, 0], [0, 1], [1, 0]])
+        );
+        assert_eq!(json["format"], "flatbake-occluders");
+    }
+
+    #[test]
+    fn a_nan_or_negative_tolerance_writes_the_traced_loops() {
+        let level = crate::level::Level {
+            name: "t".into(),
+            width: 5,
+            height: 5,
+            cells: (0..25)
+                .map(|i| {
+                    let (x, y) = (i % 5, i / 5);
+                    if (1..4).contains(&x) && (1..4).contains(&y) && (x, y) != (3, 3) {
+                        crate::level::Cell::Solid(0)
+                    } else {
+                        crate::level::Cell::Floor
+                    }
+                })
+                .collect(),
+            albedo: vec![[0.5; 3]; 25],
+            materials: vec![],
+            warnings: vec![],
+            lossy_format: None,
+        };
+        let g = crate::geometry::trace(&level);
+        for tol in [f64::NAN, -1.0, 0.0] {
+            let occ = simplify_loops(&g, tol);
+            assert_eq!(occ.tolerance, 0.0);
+            assert_eq!(occ.polygons[0].points, g.loops[0].vertices);
+        }
+        // An L of 6 vertices: at 10 px, still a triangle at least.
+        assert!(simplify_loops(&g, 10.0).polygons[0].points.len() >= 3);
+    }
+}
