@@ -17,7 +17,7 @@ use flatbake_core::bake::{GatherMethod, Report};
 use flatbake_core::batch::{self, BatchOptions, LevelOutcome, Observer, Shard};
 use flatbake_core::gather::Kernel;
 use flatbake_core::level::LoadLimits;
-use flatbake_core::output::{Depth, Exposure};
+use flatbake_core::output::{Depth, Engine, Exposure};
 use flatbake_core::quality::Quality;
 
 use crate::flags::{
@@ -136,6 +136,9 @@ pub struct OutputArgs {
     /// Also write NAME.lightmap.rgbm-unity.png (Unity's RGBM: range 5, gamma space).
     #[arg(long)]
     pub rgbm_unity: bool,
+    /// Engine preset: the lightmap files, encoding and padding that engine imports (see the README).
+    #[arg(long, alias = "preset", value_enum, value_name = "ENGINE")]
+    pub engine: Option<EngineArg>,
     /// Pad the lightmaps by N texels around the floor (8 covers bilinear and 3 mip levels), with coverage in alpha (0: off).
     #[arg(long, value_name = "N", default_value_t = 0, value_parser = crate::flags::parse_padding, allow_negative_numbers = true)]
     pub padding: u32,
@@ -270,6 +273,30 @@ fn parse_memory(s: &str) -> Result<MemoryLimit, String> {
 pub enum KernelArg {
     Flatland,
     Paper,
+}
+
+/// `--engine`: the library's [`Engine`] presets, spelled for clap.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EngineArg {
+    /// Godot 4: linear EXR, padded 8.
+    Godot,
+    /// Unity: Unity RGBM (range 5, gamma) and EXR, padded 8.
+    Unity,
+    /// Bevy: linear EXR, padded 8.
+    Bevy,
+    /// Any engine: 16-bit PNGs and linear EXR, padded 8.
+    Generic,
+}
+
+impl From<EngineArg> for Engine {
+    fn from(e: EngineArg) -> Engine {
+        match e {
+            EngineArg::Godot => Engine::Godot,
+            EngineArg::Unity => Engine::Unity,
+            EngineArg::Bevy => Engine::Bevy,
+            EngineArg::Generic => Engine::Generic,
+        }
+    }
 }
 
 /// `--quality`: the library's [`Quality`], spelled for clap.
@@ -430,7 +457,7 @@ pub fn batch_options(a: &BakeArgs) -> Result<BatchOptions, String> {
         return Err(format!("--exposure must be a positive number, not {x}"));
     }
 
-    Ok(BatchOptions {
+    let opts = BatchOptions {
         out_dir: o.out.clone(),
         quality: o.quality.into(),
         falloff: o.falloff.map(FalloffArg::distance),
@@ -463,6 +490,10 @@ pub fn batch_options(a: &BakeArgs) -> Result<BatchOptions, String> {
         max_memory: a.max_memory.bytes(),
         shard: a.shard,
         occluders: o.occluders.then_some(o.occluder_tolerance),
+    };
+    Ok(match o.engine {
+        Some(e) => opts.with_engine(e.into()),
+        None => opts,
     })
 }
 

@@ -120,6 +120,22 @@ impl BatchOptions {
         )
     }
 
+    /// These options with `engine`'s preset added: its outputs turned on,
+    /// 16-bit PNGs if it asks for them, and its padding where none is set.
+    pub fn with_engine(mut self, engine: output::Engine) -> Self {
+        let e = engine.outputs();
+        self.hdr |= e.hdr;
+        self.rgbm |= e.rgbm;
+        self.rgbm_unity |= e.rgbm_unity;
+        if e.depth == Depth::Sixteen {
+            self.depth = Depth::Sixteen;
+        }
+        if self.padding == 0 {
+            self.padding = e.padding;
+        }
+        self
+    }
+
     /// The stamp recipe of level `path` with these options.
     pub fn recipe<'a>(&'a self, path: &'a Path, fingerprint: &'a str) -> Recipe<'a> {
         Recipe {

@@ -12,6 +12,7 @@
 //! [`names`].
 
 pub mod cache;
+pub mod engine;
 pub mod exposure;
 pub mod exr;
 pub mod files;
@@ -26,6 +27,7 @@ use std::time::Instant;
 
 use ::image::DynamicImage;
 
+pub use self::engine::{Engine, EngineOutputs};
 pub use self::exposure::Exposure;
 pub use self::exr::{encode_exr_rgb32f, encode_exr_rgba32f, read_lightmap_exr};
 pub use self::files::{
