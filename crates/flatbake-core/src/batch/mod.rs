@@ -306,7 +306,7 @@ impl Observer for Silent {}
 
 /// Image extensions that are treated as levels inside folders.
 const LEVEL_EXTENSIONS: &[&str] = &[
-    "png", "bmp", "gif", "tga", "tif", "tiff", "webp", "qoi", "jpg", "jpeg", "pnm", "ppm",
+    "png", "bmp", "gif", "tga", "tif", "tiff", "webp", "qoi", "jpg", "jpeg", "pnm", "ppm", "tmx",
 ];
 
 /// Expands files and folders into the list of level files, in a stable

@@ -68,6 +68,15 @@ pub fn inputs(recipe: &Recipe) -> Result<Inputs> {
     h.update(env!("CARGO_PKG_VERSION").as_bytes());
     h.update(b"\0image\0");
     h.update(image_hash.as_bytes());
+    // A Tiled map's external tilesets hold its tiles' properties.
+    if crate::level::tiled_map::is_tiled_map(recipe.image) {
+        for tsx in crate::level::tiled_map::tiled_dependencies(recipe.image) {
+            h.update(b"\0tileset\0");
+            h.update(tsx.to_string_lossy().as_bytes());
+            h.update(b"\0");
+            h.update(&read(&tsx)?);
+        }
+    }
     // The palette that the lookup picks: which file, and its bytes.
     let palette_file = match recipe.palette {
         Some(p) => Some(p.to_path_buf()),

@@ -15,6 +15,7 @@ mod classify;
 mod decode;
 pub mod material;
 pub mod palette;
+pub mod tiled_map;
 
 use std::path::{Path, PathBuf};
 
@@ -99,6 +100,9 @@ pub enum LevelError {
     /// The level's palette is broken.
     #[error(transparent)]
     Palette(#[from] crate::level::palette::PaletteError),
+    /// A Tiled map could not be read as a level.
+    #[error(transparent)]
+    Tiled(#[from] tiled_map::TiledError),
 }
 
 /// What is wrong with a level image, in words a level designer understands.
@@ -242,7 +246,11 @@ impl Level {
 /// Loads a level image and classifies its pixels with `palette`.
 ///
 /// The level is named after the file stem (`cave.png` is `cave`).
+/// A Tiled map (`.tmx`) is read by [`tiled_map::load_tiled`] instead (no palette).
 pub fn load_level(path: &Path, palette: &Palette, limits: LoadLimits) -> Result<Level, LevelError> {
+    if tiled_map::is_tiled_map(path) {
+        return tiled_map::load_tiled(path, limits);
+    }
     let img = read_image(path, limits)?;
     let name = path
         .file_stem()
