@@ -5,36 +5,13 @@
 mod common;
 use common::*;
 
-use std::path::Path;
-
-/// Writes a small closed room with a light strip and its palette.
-fn write_room(dir: &Path, name: &str) {
-    let (w, h) = (24u32, 16u32);
-    let img = image::RgbaImage::from_fn(w, h, |x, y| {
-        if y == 0 && (8..14).contains(&x) {
-            image::Rgba([255, 250, 220, 255])
-        } else if x == 0 || y == 0 || x == w - 1 || y == h - 1 || (x == 12 && y > 6) {
-            image::Rgba([90, 90, 90, 255])
-        } else {
-            image::Rgba([180, 170, 150, 255])
-        }
-    });
-    img.save(dir.join(format!("{name}.png")))
-        .expect("write level");
-    std::fs::write(
-        dir.join(format!("{name}.palette.toml")),
-        "[[wall]]\ncolor = \"#5a5a5a\"\nreflectance = 0.6\n\n[[emitter]]\ncolor = \"#fffadc\"\nemission = [2.0, 1.8, 1.5]\n",
-    )
-    .expect("write palette");
-}
-
 #[test]
 fn baking_a_folder_writes_every_output_and_a_complete_report() {
     let dir = tempfile::tempdir().expect("temp dir");
     let levels = dir.path().join("levels");
     std::fs::create_dir(&levels).expect("mkdir");
-    write_room(&levels, "a");
-    write_room(&levels, "b");
+    write_room(&levels, "a", false);
+    write_room(&levels, "b", false);
     let o = flatbake_in(&["bake", "levels", "-o", "out", "--hdr"], dir.path());
     assert!(o.status.success(), "{}", stderr(&o));
     for name in ["a", "b"] {
@@ -96,7 +73,7 @@ fn baking_a_folder_writes_every_output_and_a_complete_report() {
 #[test]
 fn one_bad_level_does_not_stop_the_batch_and_fails_the_exit_status() {
     let dir = tempfile::tempdir().expect("temp dir");
-    write_room(dir.path(), "good");
+    write_room(dir.path(), "good", false);
     std::fs::write(dir.path().join("broken.png"), b"not a png at all").expect("write");
     let o = flatbake_in(&["bake", ".", "-o", "out", "--quiet"], dir.path());
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
@@ -113,7 +90,7 @@ fn one_bad_level_does_not_stop_the_batch_and_fails_the_exit_status() {
 #[test]
 fn quiet_success_prints_nothing_and_exits_zero() {
     let dir = tempfile::tempdir().expect("temp dir");
-    write_room(dir.path(), "room");
+    write_room(dir.path(), "room", false);
     let o = flatbake_in(&["bake", "room.png", "-o", "out", "--quiet"], dir.path());
     assert_eq!(o.status.code(), Some(0));
     assert!(o.stderr.is_empty() && o.stdout.is_empty(), "{}", stderr(&o));
@@ -122,7 +99,7 @@ fn quiet_success_prints_nothing_and_exits_zero() {
 #[test]
 fn bad_flags_exit_with_status_two() {
     let dir = tempfile::tempdir().expect("temp dir");
-    write_room(dir.path(), "room");
+    write_room(dir.path(), "room", false);
     for args in [
         &["bake", "room.png", "--quality", "ultra"][..],
         &["bake", "room.png", "--falloff", "-3"],
@@ -163,7 +140,7 @@ fn palette_legend_is_drawn_by_flatbake() {
 #[test]
 fn output_does_not_depend_on_the_thread_count() {
     let dir = tempfile::tempdir().expect("temp dir");
-    write_room(dir.path(), "room");
+    write_room(dir.path(), "room", false);
     for jobs in ["1", "2"] {
         let out = format!("out{jobs}");
         let o = flatbake_in(
@@ -184,7 +161,7 @@ fn output_does_not_depend_on_the_thread_count() {
 #[test]
 fn sweep_writes_the_csv_the_table_and_the_plot() {
     let dir = tempfile::tempdir().expect("temp dir");
-    write_room(dir.path(), "room");
+    write_room(dir.path(), "room", false);
     let o = flatbake_in(&["sweep", "room.png", "-o", "sweep"], dir.path());
     assert!(o.status.success(), "{}", stderr(&o));
     let csv = std::fs::read_to_string(dir.path().join("sweep/accuracy.csv")).expect("csv");
@@ -221,7 +198,7 @@ fn sweep_writes_the_csv_the_table_and_the_plot() {
 #[test]
 fn palette_bounces_and_the_flag_switch_off_the_bounce_and_say_so() {
     let dir = tempfile::tempdir().expect("temp dir");
-    write_room(dir.path(), "room");
+    write_room(dir.path(), "room", false);
     let report = |out: &str| -> serde_json::Value {
         let text =
             std::fs::read_to_string(dir.path().join(out).join("room.report.json")).expect("report");

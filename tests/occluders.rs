@@ -243,33 +243,6 @@ fn a_diagonal_staircase_becomes_a_straight_line() {
     assert_eq!(tight.polygons[0].points.len(), traced[0].len());
 }
 
-/// A 24 x 16 room with a light strip and a wall stub from the floor.
-fn write_room(dir: &Path, name: &str) {
-    let (w, h) = (24u32, 16u32);
-    let img = image::RgbaImage::from_fn(w, h, |x, y| {
-        if y == 0 && (8..14).contains(&x) {
-            image::Rgba([255, 250, 220, 255])
-        } else if x == 0
-            || y == 0
-            || x == w - 1
-            || y == h - 1
-            || (x == 12 && y > 6)
-            || ((4..6).contains(&x) && (4..6).contains(&y))
-        {
-            image::Rgba([90, 90, 90, 255])
-        } else {
-            image::Rgba([180, 170, 150, 255])
-        }
-    });
-    img.save(dir.join(format!("{name}.png")))
-        .expect("write level");
-    std::fs::write(
-        dir.join(format!("{name}.palette.toml")),
-        "[[wall]]\ncolor = \"#5a5a5a\"\nreflectance = 0.6\n\n[[emitter]]\ncolor = \"#fffadc\"\nemission = [2.0, 1.8, 1.5]\n",
-    )
-    .expect("write palette");
-}
-
 fn stamp_outputs(out: &Path) -> Vec<String> {
     let text = std::fs::read_to_string(out.join("room.stamp.json")).expect("stamp");
     let v: serde_json::Value = serde_json::from_str(&text).expect("stamp JSON");
@@ -284,7 +257,7 @@ fn stamp_outputs(out: &Path) -> Vec<String> {
 #[test]
 fn bake_with_occluders_writes_json_svg_and_a_godot_resource() {
     let dir = tempfile::tempdir().expect("temp dir");
-    write_room(dir.path(), "room");
+    write_room(dir.path(), "room", true);
     let args = ["bake", "room.png", "-o", "out", "--quality", "draft"];
     let o = flatbake_in(&[&args[..], &["--occluders"]].concat(), dir.path());
     assert!(o.status.success(), "{}", stderr(&o));
@@ -355,7 +328,7 @@ fn bake_with_occluders_writes_json_svg_and_a_godot_resource() {
 #[test]
 fn a_negative_tolerance_is_refused() {
     let dir = tempfile::tempdir().expect("temp dir");
-    write_room(dir.path(), "room");
+    write_room(dir.path(), "room", true);
     let o = flatbake_in(
         &[
             "bake",

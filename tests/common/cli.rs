@@ -70,3 +70,32 @@ pub fn assert_says(o: &Output, words: &[&str]) {
         assert!(e.contains(w), "stderr lacks {w:?}:\n{e}");
     }
 }
+
+/// Writes `NAME.png` and its palette: a 24 x 16 closed room with a light
+/// strip in the top wall and a wall stub from the floor, plus a 2 x 2 pillar
+/// when `pillar` is set.
+pub fn write_room(dir: &Path, name: &str, pillar: bool) {
+    let (w, h) = (24u32, 16u32);
+    let img = image::RgbaImage::from_fn(w, h, |x, y| {
+        if y == 0 && (8..14).contains(&x) {
+            image::Rgba([255, 250, 220, 255])
+        } else if x == 0
+            || y == 0
+            || x == w - 1
+            || y == h - 1
+            || (x == 12 && y > 6)
+            || (pillar && (4..6).contains(&x) && (4..6).contains(&y))
+        {
+            image::Rgba([90, 90, 90, 255])
+        } else {
+            image::Rgba([180, 170, 150, 255])
+        }
+    });
+    img.save(dir.join(format!("{name}.png")))
+        .expect("write level");
+    std::fs::write(
+        dir.join(format!("{name}.palette.toml")),
+        "[[wall]]\ncolor = \"#5a5a5a\"\nreflectance = 0.6\n\n[[emitter]]\ncolor = \"#fffadc\"\nemission = [2.0, 1.8, 1.5]\n",
+    )
+    .expect("write palette");
+}
