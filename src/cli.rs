@@ -17,7 +17,7 @@ use flatbake_core::bake::{GatherMethod, Report};
 use flatbake_core::batch::{self, BatchOptions, LevelOutcome, Observer, Shard};
 use flatbake_core::gather::Kernel;
 use flatbake_core::level::LoadLimits;
-use flatbake_core::output::{Depth, Engine, Exposure};
+use flatbake_core::output::{Depth, Engine, Exposure, ExrCompression};
 use flatbake_core::quality::Quality;
 
 use crate::flags::{
@@ -90,6 +90,12 @@ pub struct RelightArgs {
     /// Also write NAME.lightmap.rgbm-unity.png (Unity's RGBM: range 5, gamma space).
     #[arg(long)]
     pub rgbm_unity: bool,
+    /// Also write NAME.lightmap.ktx2 (RGBA 16-bit float KTX2).
+    #[arg(long)]
+    pub ktx2: bool,
+    /// Compression of the EXR outputs: none (flatbake's own encoder), zip or piz.
+    #[arg(long, value_enum, value_name = "KIND", default_value_t = ExrCompressionArg::None)]
+    pub exr_compression: ExrCompressionArg,
     /// Pad the lightmaps by N texels around the floor, with coverage in alpha (0: off).
     #[arg(long, value_name = "N", default_value_t = 0, value_parser = crate::flags::parse_padding, allow_negative_numbers = true)]
     pub padding: u32,
@@ -136,6 +142,12 @@ pub struct OutputArgs {
     /// Also write NAME.lightmap.rgbm-unity.png (Unity's RGBM: range 5, gamma space).
     #[arg(long)]
     pub rgbm_unity: bool,
+    /// Also write NAME.lightmap.ktx2 (RGBA 16-bit float KTX2, as Bevy loads it).
+    #[arg(long)]
+    pub ktx2: bool,
+    /// Compression of the EXR outputs: none (flatbake's own encoder; the default unless a preset says), zip or piz.
+    #[arg(long, value_enum, value_name = "KIND")]
+    pub exr_compression: Option<ExrCompressionArg>,
     /// Engine preset: the lightmap files, encoding and padding that engine imports (see the README).
     #[arg(long, alias = "preset", value_enum, value_name = "ENGINE")]
     pub engine: Option<EngineArg>,
@@ -278,14 +290,35 @@ pub enum KernelArg {
 /// `--engine`: the library's [`Engine`] presets, spelled for clap.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum EngineArg {
-    /// Godot 4: linear EXR, padded 8.
+    /// Godot 4: linear ZIP EXR, padded 8.
     Godot,
-    /// Unity: Unity RGBM (range 5, gamma) and EXR, padded 8.
+    /// Unity: Unity RGBM (range 5, gamma) and ZIP EXR, padded 8.
     Unity,
-    /// Bevy: linear EXR, padded 8.
+    /// Bevy: RGBA16F KTX2 and ZIP EXR, padded 8.
     Bevy,
-    /// Any engine: 16-bit PNGs and linear EXR, padded 8.
+    /// Any engine: 16-bit PNGs and uncompressed linear EXR, padded 8.
     Generic,
+}
+
+/// `--exr-compression`: the library's [`ExrCompression`], spelled for clap.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ExrCompressionArg {
+    /// Uncompressed (flatbake's own encoder).
+    None,
+    /// ZIP over 16 scan lines (Godot, Unity and Bevy import it).
+    Zip,
+    /// PIZ (wavelet and Huffman).
+    Piz,
+}
+
+impl From<ExrCompressionArg> for ExrCompression {
+    fn from(c: ExrCompressionArg) -> ExrCompression {
+        match c {
+            ExrCompressionArg::None => ExrCompression::None,
+            ExrCompressionArg::Zip => ExrCompression::Zip,
+            ExrCompressionArg::Piz => ExrCompression::Piz,
+        }
+    }
 }
 
 impl From<EngineArg> for Engine {
@@ -481,6 +514,8 @@ pub fn batch_options(a: &BakeArgs) -> Result<BatchOptions, String> {
         rgbm: o.rgbm,
         rgbm_unity: o.rgbm_unity,
         padding: o.padding,
+        ktx2: o.ktx2,
+        exr_compression: o.exr_compression.map(Into::into),
         limits: LoadLimits {
             max_pixels: a.max_pixels,
         },
@@ -607,6 +642,8 @@ fn relight(a: &RelightArgs) -> u8 {
         hdr: a.hdr,
         padding: a.padding,
         rgbm_unity: a.rgbm_unity,
+        ktx2: a.ktx2,
+        exr_compression: a.exr_compression.into(),
     };
     match flatbake_core::batch::relight::relight(&a.cache, &opts) {
         Ok(report) => {

@@ -23,7 +23,9 @@ use crate::level::palette::Palette;
 use crate::level::{self, LoadLimits};
 use crate::output::cache::{Cache, CacheError};
 use crate::output::exposure::{self, Exposure};
-use crate::output::{self, Depth, Encoded, OutputError, OutputKind, OutputOptions, names};
+use crate::output::{
+    self, Depth, Encoded, ExrCompression, OutputError, OutputKind, OutputOptions, names,
+};
 use crate::quality::Quality;
 pub use shard::{Shard, ShardError};
 use stamp::Recipe;
@@ -63,6 +65,11 @@ pub struct BatchOptions {
     /// Padding of the lightmap outputs in texels ([`output::padding`]);
     /// 0 (the default) pads nothing.
     pub padding: u32,
+    /// Also write `NAME.lightmap.ktx2` (RGBA 16-bit float).
+    pub ktx2: bool,
+    /// Compression of the EXR outputs; `None`: the engine preset's, or
+    /// none (flatbake's own encoder).
+    pub exr_compression: Option<ExrCompression>,
     /// Limits checked before an image is decoded.
     pub limits: LoadLimits,
     /// Also write one layer per light group (implies the EXR lightmap).
@@ -97,6 +104,13 @@ impl BatchOptions {
         if self.rgbm_unity {
             added.push_str(" rgbm-unity");
         }
+        if self.ktx2 {
+            added.push_str(" ktx2");
+        }
+        let exr = self.exr_compression.unwrap_or_default();
+        if exr != ExrCompression::None {
+            added.push_str(&format!(" exr-{}", exr.name()));
+        }
         if let Some(t) = self.occluders {
             added.push_str(&format!(" occluders {t:?}"));
         }
@@ -121,12 +135,15 @@ impl BatchOptions {
     }
 
     /// These options with `engine`'s preset added: its outputs turned on,
-    /// 16-bit PNGs if it asks for them, and its padding where none is set.
+    /// 16-bit PNGs if it asks for them, its padding where none is set and
+    /// its EXR compression where none is chosen.
     pub fn with_engine(mut self, engine: output::Engine) -> Self {
         let e = engine.outputs();
         self.hdr |= e.hdr;
         self.rgbm |= e.rgbm;
         self.rgbm_unity |= e.rgbm_unity;
+        self.ktx2 |= e.ktx2;
+        self.exr_compression = self.exr_compression.or(Some(e.exr_compression));
         if e.depth == Depth::Sixteen {
             self.depth = Depth::Sixteen;
         }
@@ -175,6 +192,8 @@ impl BatchOptions {
             rgbm: self.rgbm,
             rgbm_unity: self.rgbm_unity,
             padding: self.padding,
+            ktx2: self.ktx2,
+            exr_compression: self.exr_compression.unwrap_or_default(),
         }
     }
 }
@@ -195,6 +214,8 @@ impl Default for BatchOptions {
             rgbm: false,
             rgbm_unity: false,
             padding: output::padding::DEFAULT_PADDING,
+            ktx2: false,
+            exr_compression: None,
             limits: LoadLimits::default(),
             layers: false,
             cache: false,

@@ -10,7 +10,7 @@ use crate::bake::report::{Energy, Report, Skip, Timings};
 use crate::error::{Error, Result};
 use crate::output::cache::{Cache, CacheError};
 use crate::output::names::OutputKind;
-use crate::output::{self, Depth, OutputOptions};
+use crate::output::{self, Depth, ExrCompression, OutputOptions};
 
 /// Why an `--emission` argument was refused.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -83,6 +83,10 @@ pub struct RelightOptions {
     /// Also write the Unity-convention RGBM lightmap (not in the cache
     /// either).
     pub rgbm_unity: bool,
+    /// Also write the RGBA 16-bit float KTX2 lightmap.
+    pub ktx2: bool,
+    /// Compression of the EXR outputs (lightmap and layers).
+    pub exr_compression: ExrCompression,
 }
 
 /// Relights a cache; returns the report written (`NAME.report.json`).
@@ -131,6 +135,8 @@ pub fn relight(cache_path: &Path, opts: &RelightOptions) -> Result<Report> {
         rgbm: cache.rgbm,
         rgbm_unity: opts.rgbm_unity,
         padding: opts.padding,
+        ktx2: opts.ktx2,
+        exr_compression: opts.exr_compression,
     };
     // Everything is encoded before anything is written, so that the report
     // on disk lists every file of the relight, layers included.

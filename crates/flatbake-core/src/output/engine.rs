@@ -3,18 +3,18 @@
 //! engine takes as they are. A preset only turns outputs on; options given
 //! beside it add to it.
 
-use super::Depth;
+use super::{Depth, ExrCompression};
 
 /// A game engine whose importer the outputs are chosen for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Engine {
-    /// Godot 4: the linear EXR (imported as an HDR texture), padded.
+    /// Godot 4: the linear ZIP EXR (imported as an HDR texture), padded.
     Godot,
-    /// Unity: Unity-convention RGBM (range 5, gamma) and the EXR, padded.
+    /// Unity: Unity-convention RGBM (range 5, gamma) and the ZIP EXR, padded.
     Unity,
-    /// Bevy: the linear EXR (Bevy's `exr` feature), padded.
+    /// Bevy: the RGBA16F KTX2 (Bevy's `ktx2` feature) and the ZIP EXR, padded.
     Bevy,
-    /// Any engine: 16-bit sRGB PNGs and the linear EXR, padded.
+    /// Any engine: 16-bit sRGB PNGs and the uncompressed linear EXR, padded.
     Generic,
 }
 
@@ -31,6 +31,10 @@ pub struct EngineOutputs {
     pub depth: Depth,
     /// Padding in texels (see [`super::padding`]).
     pub padding: u32,
+    /// `NAME.lightmap.ktx2` (RGBA 16-bit float).
+    pub ktx2: bool,
+    /// Compression of the EXR outputs.
+    pub exr_compression: ExrCompression,
 }
 
 impl Engine {
@@ -48,7 +52,9 @@ impl Engine {
     }
 
     /// The outputs this preset turns on. Every preset pads by
-    /// [`super::padding::SUGGESTED_PADDING`] texels.
+    /// [`super::padding::SUGGESTED_PADDING`] texels; the engine presets
+    /// compress the EXR with ZIP (which Godot, Unity and Bevy import),
+    /// `generic` leaves it uncompressed for the simplest readers.
     pub fn outputs(self) -> EngineOutputs {
         let base = EngineOutputs {
             hdr: true,
@@ -56,15 +62,19 @@ impl Engine {
             rgbm_unity: false,
             depth: Depth::Eight,
             padding: super::padding::SUGGESTED_PADDING,
+            ktx2: false,
+            exr_compression: ExrCompression::Zip,
         };
         match self {
-            Engine::Godot | Engine::Bevy => base,
+            Engine::Godot => base,
+            Engine::Bevy => EngineOutputs { ktx2: true, ..base },
             Engine::Unity => EngineOutputs {
                 rgbm_unity: true,
                 ..base
             },
             Engine::Generic => EngineOutputs {
                 depth: Depth::Sixteen,
+                exr_compression: ExrCompression::None,
                 ..base
             },
         }

@@ -5,7 +5,58 @@
 use std::path::Path;
 
 use super::OutputError;
+use super::exr_compressed::{ExrCompression, encode_exr_f32_compressed};
 use super::files::describe_io;
+
+/// `rgb` (row-major, `width * height`) as a 32-bit float RGB EXR
+/// compressed with `compression`: [`encode_exr_rgb32f`] for
+/// [`ExrCompression::None`], else the `exr` crate's encoder
+/// ([`super::exr_compressed`]). Both are lossless and deterministic.
+pub fn encode_exr_rgb(
+    width: usize,
+    height: usize,
+    rgb: &[[f32; 3]],
+    compression: ExrCompression,
+) -> Result<Vec<u8>, String> {
+    match compression {
+        ExrCompression::None => encode_exr_rgb32f(width, height, rgb),
+        c => encode_exr_f32_compressed(
+            width,
+            height,
+            planes(rgb, &[("B", 2), ("G", 1), ("R", 0)]),
+            c,
+        ),
+    }
+}
+
+/// `rgba` as [`encode_exr_rgb`] writes RGB, with the `A` channel.
+pub fn encode_exr_rgba(
+    width: usize,
+    height: usize,
+    rgba: &[[f32; 4]],
+    compression: ExrCompression,
+) -> Result<Vec<u8>, String> {
+    match compression {
+        ExrCompression::None => encode_exr_rgba32f(width, height, rgba),
+        c => encode_exr_f32_compressed(
+            width,
+            height,
+            planes(rgba, &[("A", 3), ("B", 2), ("G", 1), ("R", 0)]),
+            c,
+        ),
+    }
+}
+
+/// One plane per named channel index of `pixels`.
+fn planes<const N: usize>(
+    pixels: &[[f32; N]],
+    channels: &[(&'static str, usize)],
+) -> Vec<(&'static str, Vec<f32>)> {
+    channels
+        .iter()
+        .map(|&(name, k)| (name, pixels.iter().map(|p| p[k]).collect()))
+        .collect()
+}
 
 /// Bytes of a single-part, scan-line, uncompressed OpenEXR file holding
 /// `rgb` (row-major, `width * height`) as 32-bit float R, G, B channels.

@@ -142,6 +142,10 @@ pub struct ManifestEmitter {
 
 /// Encodes every layer (EXR and PNG) of `level` with `emission` per
 /// emitter, then `NAME.layers.json`, in writing order (manifest last).
+/// With `opts.padding > 0` each layer is padded as the lightmap is
+/// ([`output::padding`]): the EXR gains the coverage as `A` and the PNG's
+/// alpha is the coverage. The EXRs are compressed as `opts.exr_compression`
+/// says.
 pub fn encode_layers(
     level: &Level,
     r: &Responses,
@@ -164,15 +168,29 @@ pub fn encode_layers(
         let map = layer(r, emission, &g);
         let exr_kind = OutputKind::LayerExr(g.file_tag.clone());
         let png_kind = OutputKind::LayerPng(g.file_tag.clone());
-        let hdr = output::hdr_pixels(level, &map)?;
-        let exr =
-            output::encode_exr_rgb32f(level.width, level.height, &hdr).map_err(|message| {
-                OutputError::Encode {
-                    path: exr_kind.file_name(name).into(),
-                    message,
-                }
-            })?;
-        let img = output::lightmap_image(level, &map, opts)?;
+        // Padded like the lightmap (same mask, same width): padding is
+        // linear in the values, so the padded layers still add up to the
+        // padded lightmap.
+        let hdr = output::padded_hdr_pixels(level, &map, opts.padding)?;
+        let exr = if opts.padding > 0 {
+            output::encode_exr_rgba(
+                level.width,
+                level.height,
+                &output::with_coverage(level, &hdr),
+                opts.exr_compression,
+            )
+        } else {
+            output::encode_exr_rgb(level.width, level.height, &hdr, opts.exr_compression)
+        }
+        .map_err(|message| OutputError::Encode {
+            path: exr_kind.file_name(name).into(),
+            message,
+        })?;
+        let img = if opts.padding > 0 {
+            output::image::padded_sdr_image(level, &hdr, opts)
+        } else {
+            output::lightmap_image(level, &map, opts)?
+        };
         let png = output::encode_png(&img).map_err(|e| OutputError::Encode {
             path: png_kind.file_name(name).into(),
             message: e.to_string(),

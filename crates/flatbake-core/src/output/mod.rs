@@ -15,8 +15,10 @@ pub mod cache;
 pub mod engine;
 pub mod exposure;
 pub mod exr;
+pub mod exr_compressed;
 pub mod files;
 pub mod image;
+pub mod ktx2;
 pub mod layers;
 pub mod names;
 pub mod occluders;
@@ -29,7 +31,10 @@ use ::image::DynamicImage;
 
 pub use self::engine::{Engine, EngineOutputs};
 pub use self::exposure::Exposure;
-pub use self::exr::{encode_exr_rgb32f, encode_exr_rgba32f, read_lightmap_exr};
+pub use self::exr::{
+    encode_exr_rgb, encode_exr_rgb32f, encode_exr_rgba, encode_exr_rgba32f, read_lightmap_exr,
+};
+pub use self::exr_compressed::ExrCompression;
 pub use self::files::{
     OutputError, StagedFile, ensure_output_dir, write_atomic, write_file_atomic,
 };
@@ -38,6 +43,7 @@ pub use self::image::{
     encode_png_rgba16, hdr_pixels, lightmap_image, lit_image, padded_hdr_pixels, rgbm_decode,
     rgbm_encode, rgbm_image, rgbm_unity_decode, rgbm_unity_encode, srgb8, srgb16,
 };
+pub use self::ktx2::encode_ktx2_rgba16f;
 pub use self::names::OutputKind;
 pub use crate::bake::Lightmap;
 use crate::bake::report::Report;
@@ -76,6 +82,13 @@ pub struct OutputOptions {
     /// give the coverage (1 floor, 0 elsewhere). 0 (the default,
     /// [`padding::DEFAULT_PADDING`]) writes the lightmaps as without it.
     pub padding: u32,
+    /// Also write `NAME.lightmap.ktx2`: the EXR's values as RGBA 16-bit
+    /// float KTX2 ([`ktx2`]), alpha the coverage when padded, else 1.
+    /// Default off.
+    pub ktx2: bool,
+    /// How the EXR outputs (lightmap and layers) are compressed. Default
+    /// none: flatbake's own encoder.
+    pub exr_compression: ExrCompression,
 }
 
 impl Default for OutputOptions {
@@ -87,6 +100,8 @@ impl Default for OutputOptions {
             rgbm: false,
             rgbm_unity: false,
             padding: padding::DEFAULT_PADDING,
+            ktx2: false,
+            exr_compression: ExrCompression::None,
         }
     }
 }
@@ -102,7 +117,8 @@ pub struct Encoded {
 
 /// Encodes the image outputs of one level in memory, in writing order:
 /// `NAME.lightmap.png`, `NAME.lit.png`, with `opts.hdr` `NAME.lightmap.exr`,
-/// with `opts.rgbm` `NAME.lightmap.rgbm.png`, with `opts.rgbm_unity`
+/// with `opts.ktx2` `NAME.lightmap.ktx2`, with `opts.rgbm`
+/// `NAME.lightmap.rgbm.png`, with `opts.rgbm_unity`
 /// `NAME.lightmap.rgbm-unity.png`. With `opts.padding > 0` the
 /// lightmap outputs (not the lit image) are padded ([`padding`]).
 pub fn encode_images(
@@ -143,22 +159,18 @@ pub fn encode_images(
     let mut files = vec![lightmap?, lit?];
     if opts.hdr {
         let bytes = match &padded {
-            Some(p) => {
-                let rgba: Vec<[f32; 4]> = p
-                    .iter()
-                    .zip(&level.cells)
-                    .map(|(c, cell)| {
-                        let a = if *cell == crate::level::Cell::Floor {
-                            1.0
-                        } else {
-                            0.0
-                        };
-                        [c[0], c[1], c[2], a]
-                    })
-                    .collect();
-                encode_exr_rgba32f(level.width, level.height, &rgba)
-            }
-            None => encode_exr_rgb32f(level.width, level.height, &hdr_pixels(level, map)?),
+            Some(p) => encode_exr_rgba(
+                level.width,
+                level.height,
+                &with_coverage(level, p),
+                opts.exr_compression,
+            ),
+            None => encode_exr_rgb(
+                level.width,
+                level.height,
+                &hdr_pixels(level, map)?,
+                opts.exr_compression,
+            ),
         }
         .map_err(|message| OutputError::Encode {
             path: OutputKind::Hdr.file_name(name).into(),
@@ -166,6 +178,25 @@ pub fn encode_images(
         })?;
         files.push(Encoded {
             kind: OutputKind::Hdr,
+            bytes,
+        });
+    }
+    if opts.ktx2 {
+        let rgba = match &padded {
+            Some(p) => with_coverage(level, p),
+            None => hdr_pixels(level, map)?
+                .into_iter()
+                .map(|c| [c[0], c[1], c[2], 1.0])
+                .collect(),
+        };
+        let bytes = encode_ktx2_rgba16f(level.width, level.height, &rgba).map_err(|message| {
+            OutputError::Encode {
+                path: OutputKind::Ktx2.file_name(name).into(),
+                message,
+            }
+        })?;
+        files.push(Encoded {
+            kind: OutputKind::Ktx2,
             bytes,
         });
     }
@@ -189,6 +220,23 @@ pub fn encode_images(
         )?);
     }
     Ok(files)
+}
+
+/// Padded linear pixels of `level` with the coverage as a fourth channel:
+/// 1 on floor, 0 on padding, walls and void.
+pub(crate) fn with_coverage(level: &Level, padded: &[[f32; 3]]) -> Vec<[f32; 4]> {
+    padded
+        .iter()
+        .zip(&level.cells)
+        .map(|(c, cell)| {
+            let a = if *cell == crate::level::Cell::Floor {
+                1.0
+            } else {
+                0.0
+            };
+            [c[0], c[1], c[2], a]
+        })
+        .collect()
 }
 
 /// Writes `files` of level `name` into `dir` (which must exist, see

@@ -49,6 +49,8 @@ pub enum OutputKind {
     Lit,
     /// `NAME.lightmap.exr`
     Hdr,
+    /// `NAME.lightmap.ktx2`: the HDR lightmap as RGBA 16-bit float KTX2.
+    Ktx2,
     /// `NAME.lightmap.rgbm.png`
     Rgbm,
     /// `NAME.lightmap.rgbm-unity.png`: RGBM in Unity's convention.
@@ -80,6 +82,7 @@ impl OutputKind {
             OutputKind::Lightmap => "lightmap.png".into(),
             OutputKind::Lit => "lit.png".into(),
             OutputKind::Hdr => "lightmap.exr".into(),
+            OutputKind::Ktx2 => "lightmap.ktx2".into(),
             OutputKind::Rgbm => "lightmap.rgbm.png".into(),
             OutputKind::RgbmUnity => "lightmap.rgbm-unity.png".into(),
             OutputKind::Report => "report.json".into(),
