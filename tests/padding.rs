@@ -239,3 +239,90 @@ fn coverage_marks_the_floor_exactly_in_png_and_exr() {
         file(&plain, OutputKind::Lightmap)
     );
 }
+
+/// The level with a second light group: a red lamp in the bottom wall.
+fn two_group_level() -> Level {
+    let mut lvl = level();
+    let mut red = light(3.0, 0.5);
+    red.color = [255, 0, 0];
+    red.emission = [3.0, 0.5, 0.5];
+    lvl.materials.push(red);
+    let id = (lvl.materials.len() - 1) as u16;
+    let y = lvl.height - 5; // the bottom wall row of the room
+    for x in 20..24 {
+        assert!(matches!(lvl.cells[y * lvl.width + x], Cell::Solid(_)));
+        lvl.cells[y * lvl.width + x] = Cell::Solid(id);
+    }
+    lvl
+}
+
+#[test]
+fn layers_are_padded_like_the_lightmap() {
+    use flatbake_core::output::layers::{encode_layers, palette_emission};
+    let lvl = two_group_level();
+    let mut settings = Settings::new(Quality::Draft);
+    settings.responses = true;
+    let baked = bake(&lvl, &settings, &quiet).expect("bake");
+    let r = baked.responses.as_ref().expect("responses");
+    let emission = palette_emission(&lvl, r);
+    let floor = floor_mask(&lvl);
+    let opts = OutputOptions {
+        padding: 8,
+        ..OutputOptions::default()
+    };
+    let files = encode_layers(&lvl, r, &emission, &opts).expect("layers");
+    let exrs: Vec<&Encoded> = files
+        .iter()
+        .filter(|f| matches!(f.kind, OutputKind::LayerExr(_)))
+        .collect();
+    assert_eq!(exrs.len(), 2);
+    let mut sum = vec![[0f64; 3]; lvl.width * lvl.height];
+    for f in &exrs {
+        let img = image::load_from_memory_with_format(&f.bytes, image::ImageFormat::OpenExr)
+            .expect("layer EXR")
+            .into_rgba32f();
+        let rgb: Vec<[f32; 3]> = img.pixels().map(|p| [p.0[0], p.0[1], p.0[2]]).collect();
+        // The same bilinear check as the lightmap's.
+        assert_eq!(bleeding_samples(&rgb, &lvl), 0, "{:?}", f.kind);
+        for ((p, fl), s) in img.pixels().zip(&floor).zip(&mut sum) {
+            assert_eq!(p.0[3], if *fl { 1.0 } else { 0.0 }, "{:?}", f.kind);
+            for k in 0..3 {
+                s[k] += p.0[k] as f64;
+            }
+        }
+    }
+    // The check can fail: the same layers unpadded bleed.
+    let plain = encode_layers(&lvl, r, &emission, &OutputOptions::default()).expect("layers");
+    let unpadded = plain
+        .iter()
+        .find(|f| matches!(f.kind, OutputKind::LayerExr(_)))
+        .expect("layer");
+    let img = image::load_from_memory_with_format(&unpadded.bytes, image::ImageFormat::OpenExr)
+        .expect("layer EXR")
+        .into_rgb32f();
+    let rgb: Vec<[f32; 3]> = img.pixels().map(|p| p.0).collect();
+    assert!(bleeding_samples(&rgb, &lvl) > 0);
+    // Padding is linear in the light, so the padded layers still add up to
+    // the padded lightmap (of the same responses).
+    let map = flatbake_core::output::Lightmap {
+        width: lvl.width,
+        height: lvl.height,
+        rgb: r.combine(&emission),
+    };
+    let padded = padded_hdr_pixels(&lvl, &map, 8).expect("pad");
+    for (s, p) in sum.iter().zip(&padded) {
+        for k in 0..3 {
+            assert!((s[k] - p[k] as f64).abs() <= 1e-5 * (p[k] as f64).max(1e-3));
+        }
+    }
+    // The previews' alpha is the coverage too.
+    for f in files
+        .iter()
+        .filter(|f| matches!(f.kind, OutputKind::LayerPng(_)))
+    {
+        let png = image::load_from_memory(&f.bytes).expect("png").into_rgba8();
+        for (p, fl) in png.pixels().zip(&floor) {
+            assert_eq!(p.0[3], if *fl { 255 } else { 0 });
+        }
+    }
+}
