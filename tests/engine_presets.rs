@@ -5,7 +5,7 @@ mod common;
 use common::*;
 
 use flatbake_core::batch::BatchOptions;
-use flatbake_core::output::{Depth, Engine};
+use flatbake_core::output::{Depth, Engine, ExrCompression};
 
 #[test]
 fn presets_add_to_the_options_given() {
@@ -15,6 +15,13 @@ fn presets_add_to_the_options_given() {
         assert_eq!(o.padding, 8, "{e:?}");
         assert_eq!(o.rgbm_unity, e == Engine::Unity);
         assert_eq!(o.depth == Depth::Sixteen, e == Engine::Generic);
+        assert_eq!(o.ktx2, e == Engine::Bevy);
+        let zip = if e == Engine::Generic {
+            ExrCompression::None
+        } else {
+            ExrCompression::Zip
+        };
+        assert_eq!(o.output_options(1.0).exr_compression, zip);
         // An explicit padding and extra outputs are kept.
         let given = BatchOptions {
             padding: 3,
@@ -24,7 +31,40 @@ fn presets_add_to_the_options_given() {
         .with_engine(e);
         assert_eq!(given.padding, 3);
         assert!(given.rgbm);
+        // An EXR compression chosen beside a preset wins over the preset's.
+        let chosen = BatchOptions {
+            exr_compression: Some(ExrCompression::None),
+            ..BatchOptions::default()
+        }
+        .with_engine(e);
+        assert_eq!(
+            chosen.output_options(1.0).exr_compression,
+            ExrCompression::None
+        );
     }
+}
+
+#[test]
+fn new_format_options_are_spelled_in_the_stamp_only_when_set() {
+    let plain = BatchOptions::default();
+    let fp = plain.fingerprint();
+    let ktx2 = BatchOptions {
+        ktx2: true,
+        ..BatchOptions::default()
+    };
+    let zip = BatchOptions {
+        exr_compression: Some(ExrCompression::Zip),
+        ..BatchOptions::default()
+    };
+    let none = BatchOptions {
+        exr_compression: Some(ExrCompression::None),
+        ..BatchOptions::default()
+    };
+    assert!(!fp.contains("ktx2") && !fp.contains("exr-"));
+    assert_eq!(ktx2.fingerprint(), format!("{fp} ktx2"));
+    assert_eq!(zip.fingerprint(), format!("{fp} exr-zip"));
+    // Asking for the default changes no byte, so no stamp either.
+    assert_eq!(none.fingerprint(), fp);
 }
 
 #[test]

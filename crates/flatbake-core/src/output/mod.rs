@@ -1,5 +1,5 @@
 //! The last step of a bake: encoding a level's results as files and writing
-//! them — the lightmap and lit PNGs, the optional HDR EXR and RGBM PNG, the
+//! them — the lightmap and lit PNGs, the optional HDR EXR, KTX2 and RGBM PNGs, the
 //! light layers ([`layers`]), the relight cache ([`cache`]) and the report.
 //!
 //! Everything is encoded in memory first ([`encode_images`],
