@@ -561,3 +561,60 @@ fn every_file_a_preset_writes_decodes_within_its_error() {
     }
     eprintln!("largest round-trip error per format: {worst:#?}");
 }
+
+#[test]
+fn relight_writes_ktx2_and_compressed_exr_too() {
+    let dir = tempfile::tempdir().expect("temp");
+    let level = Path::new(env!("CARGO_MANIFEST_DIR")).join("levels/colour_bleed.png");
+    let bake_dir = dir.path().join("bake");
+    assert_exit(
+        &flatbake(&[
+            "bake",
+            s(&level),
+            "-o",
+            s(&bake_dir),
+            "--quality",
+            "draft",
+            "--cache",
+            "--quiet",
+        ]),
+        0,
+    );
+    let relit = dir.path().join("relit");
+    assert_exit(
+        &flatbake(&[
+            "relight",
+            s(&bake_dir.join("colour_bleed.flatbake")),
+            "-o",
+            s(&relit),
+            "--layers",
+            "--ktx2",
+            "--exr-compression",
+            "piz",
+            "--padding",
+            "8",
+            "--quiet",
+        ]),
+        0,
+    );
+    let exr = std::fs::read(relit.join("colour_bleed.lightmap.exr")).expect("EXR");
+    assert_eq!(exr_compression_code(&exr), 4);
+    let img = image::load_from_memory_with_format(&exr, image::ImageFormat::OpenExr)
+        .expect("EXR")
+        .into_rgba32f();
+    let want: Vec<[f32; 3]> = img.pixels().map(|p| [p.0[0], p.0[1], p.0[2]]).collect();
+    let ktx2 = std::fs::read(relit.join("colour_bleed.lightmap.ktx2")).expect("KTX2");
+    let texels = read_ktx2(&ktx2, img.width(), img.height());
+    check_halves(&texels, &want);
+    for (t, p) in texels.iter().zip(img.pixels()) {
+        assert_eq!(t[3], p.0[3]);
+    }
+    let layers = std::fs::read_dir(&relit)
+        .expect("relit")
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().contains(".layer-"))
+        .filter(|e| e.file_name().to_string_lossy().ends_with(".exr"))
+        .map(|e| exr_compression_code(&std::fs::read(e.path()).expect("layer")))
+        .collect::<Vec<_>>();
+    assert!(!layers.is_empty() && layers.iter().all(|&c| c == 4));
+}
