@@ -257,6 +257,7 @@ fn two_group_level() -> Level {
 }
 
 #[test]
+#[allow(clippy::needless_range_loop)]
 fn layers_are_padded_like_the_lightmap() {
     use flatbake_core::output::layers::{encode_layers, palette_emission};
     let lvl = two_group_level();
