@@ -400,3 +400,97 @@ fn bake_directional_writes_its_files() {
     assert_exit(&o, 1);
     assert_says(&o, &["room.normals.png", "5x5"]);
 }
+
+/// The radiosity a ray from `p` in direction `theta` (`+y` up) meets first:
+/// the patch mean of the edge face it hits (found by walking the pixel grid).
+fn first_hit(baked: &Baked, lvl: &Level, p: [f64; 2], theta: f64) -> f64 {
+    use flatbake_core::geometry::Normal;
+    let (dx, dy) = (theta.cos(), -theta.sin());
+    let (mut cx, mut cy) = (p[0].floor() as i64, p[1].floor() as i64);
+    let step_x = if dx > 0.0 { 1 } else { -1 };
+    let step_y = if dy > 0.0 { 1 } else { -1 };
+    let next = |c: i64, s: i64| if s > 0 { c as f64 + 1.0 } else { c as f64 };
+    loop {
+        let tx = if dx.abs() < 1e-300 { f64::INFINITY } else { (next(cx, step_x) - p[0]) / dx };
+        let ty = if dy.abs() < 1e-300 { f64::INFINITY } else { (next(cy, step_y) - p[1]) / dy };
+        let (normal, t) = if tx < ty {
+            cx += step_x;
+            (if step_x > 0 { Normal::Left } else { Normal::Right }, tx)
+        } else {
+            cy += step_y;
+            (if step_y > 0 { Normal::Up } else { Normal::Down }, ty)
+        };
+        if lvl.cell(cx as usize, cy as usize) == Cell::Floor {
+            continue;
+        }
+        let hit = [p[0] + t * dx, p[1] + t * dy];
+        let (line, s) = if normal.is_vertical_edge() { (hit[0], hit[1]) } else { (hit[1], hit[0]) };
+        for (ei, e) in baked.geometry.edges.iter().enumerate() {
+            let (lo, hi) = e.extent();
+            if e.normal == normal && e.line() == line.round() && s >= lo && s <= hi {
+                let range = baked.patches.of_edge(ei);
+                let k = (((s - lo) / baked.patches.step[ei]) as usize).min(range.len() - 1);
+                return baked.radiosity[0][range.start + k];
+            }
+        }
+        panic!("no edge at {hit:?} facing {normal:?}");
+    }
+}
+
+/// Reflected light too: around a corner from a light, a pixel that sees lit
+/// walls (and a little of the light) gets the moments of the first-hit
+/// radiosity found by casting rays, to the discretisation error of the
+/// `reference` preset's half-pixel patches (the ray cast takes each patch's
+/// mean, the bake its slope too).
+#[test]
+fn moments_of_reflected_light_match_a_ray_cast() {
+    let rows = [
+        "################",
+        "#..............#",
+        "#..............#",
+        "#######........#",
+        "      #........#",
+        "      #........#",
+        "      #........#",
+        "      ###LLL####",
+    ];
+    let lvl = ascii(&rows, &[('#', wall(0.8)), ('L', light(2.0, 0.0))]);
+    let mut s = Settings::new(Quality::Reference);
+    s.knobs.lattice = None;
+    let baked = bake_dir(&lvl, &s);
+    let dir = baked.directional.as_ref().unwrap();
+    let mut checked = 0;
+    for (x, y) in [(2usize, 1usize), (3, 2), (5, 1), (8, 2), (14, 1), (9, 5)] {
+        let p = [x as f64 + 0.5, y as f64 + 0.5];
+        let n = 100_000;
+        let mut m = [0.0; 3];
+        for i in 0..n {
+            let th = (i as f64 + 0.5) * TAU / n as f64;
+            let b = first_hit(&baked, &lvl, p, th);
+            m[0] += b / n as f64;
+            m[1] += b * th.cos() / n as f64;
+            m[2] += b * th.sin() / n as f64;
+        }
+        let i = y * lvl.width + x;
+        let got = [
+            baked.lightmap.rgb[i][0] as f64,
+            dir.cos[i][0] as f64,
+            dir.sin[i][0] as f64,
+        ];
+        for k in 0..3 {
+            assert!(
+                (got[k] - m[k]).abs() < 3e-3 * m[0],
+                "({x},{y}) component {k}: bake {} vs ray cast {} (mean {})",
+                got[k],
+                m[k],
+                m[0]
+            );
+        }
+        eprintln!(
+            "({x},{y}): mean {:.5} vs {:.5}, cos {:.5} vs {:.5}, sin {:.5} vs {:.5}",
+            got[0], m[0], got[1], m[1], got[2], m[2]
+        );
+        checked += 1;
+    }
+    assert_eq!(checked, 6);
+}
