@@ -24,7 +24,8 @@ fn main() -> anyhow::Result<()> {
         .map(|p| p.join("flatbake"))
         .ok_or_else(|| anyhow::anyhow!("no flatbake binary beside the example"))?;
     let dir = tempfile::tempdir()?;
-    let mut levels: Vec<(String, PathBuf)> = vec![("big_level".into(), "levels/big_level.png".into())];
+    let mut levels: Vec<(String, PathBuf)> =
+        vec![("big_level".into(), "levels/big_level.png".into())];
     // The classes as `synth::issue_classes` makes them.
     for (label, level) in [
         ("noise 0.3", synth::noise(512, 0.3, 12, 1)),
@@ -35,8 +36,13 @@ fn main() -> anyhow::Result<()> {
         levels.push((label.into(), sub.join(format!("{}.png", level.name))));
     }
     let load = || std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
-    println!("quality {quality}, {runs} interleaved runs each, load at start {}", load().trim());
-    println!("| level | plain s | directional s | ratio | plain gather s | directional gather s | ratio |");
+    println!(
+        "quality {quality}, {runs} interleaved runs each, load at start {}",
+        load().trim()
+    );
+    println!(
+        "| level | plain s | directional s | ratio | plain gather s | directional gather s | ratio |"
+    );
     println!("|---|---:|---:|---:|---:|---:|---:|");
     for (label, path) in &levels {
         let mut t = [Vec::new(), Vec::new()];

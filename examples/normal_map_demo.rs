@@ -30,7 +30,9 @@ fn main() -> Result<(), String> {
     let levels = dir.join("levels");
     let out = dir.join("out");
     std::fs::create_dir_all(&levels).map_err(|e| e.to_string())?;
-    level().save(levels.join("bricks.png")).map_err(|e| e.to_string())?;
+    level()
+        .save(levels.join("bricks.png"))
+        .map_err(|e| e.to_string())?;
     normals()
         .save(levels.join("bricks.normals.png"))
         .map_err(|e| e.to_string())?;

@@ -278,7 +278,10 @@ fn mean_is_the_plain_lightmap() {
                 let mean = dir.lightmap.rgb[i][0];
                 let len = m.cos[i][0].hypot(m.sin[i][0]);
                 if *c == Cell::Floor {
-                    assert!(len <= mean * (1.0 + 1e-5) + 1e-9, "{q}: |m| {len} > mean {mean}");
+                    assert!(
+                        len <= mean * (1.0 + 1e-5) + 1e-9,
+                        "{q}: |m| {len} > mean {mean}"
+                    );
                 } else {
                     assert_eq!(len, 0.0);
                 }
@@ -360,7 +363,10 @@ fn bake_directional_writes_its_files() {
         "the flag re-bakes: {}",
         String::from_utf8_lossy(&o.stdout)
     );
-    assert!(!out.join("room.normals.lightmap.png").exists(), "the normal map is no level");
+    assert!(
+        !out.join("room.normals.lightmap.png").exists(),
+        "the normal map is no level"
+    );
     let exr = std::fs::read(out.join("room.directional.exr")).unwrap();
     for name in ["cos.R", "cos.G", "cos.B", "sin.R", "sin.G", "sin.B"] {
         let needle = format!("{name}\0");
@@ -370,10 +376,16 @@ fn bake_directional_writes_its_files() {
         );
     }
     // Its R, G, B are the mean: what `image` reads of it is the lightmap.
-    let mean = image::open(out.join("room.directional.exr")).unwrap().into_rgb32f();
+    let mean = image::open(out.join("room.directional.exr"))
+        .unwrap()
+        .into_rgb32f();
     let lit = image::open(out.join("room.lit.png")).unwrap().into_rgba8();
-    let lit_n = image::open(out.join("room.lit-normals.png")).unwrap().into_rgba8();
-    let preview = image::open(out.join("room.direction.png")).unwrap().into_rgb8();
+    let lit_n = image::open(out.join("room.lit-normals.png"))
+        .unwrap()
+        .into_rgba8();
+    let preview = image::open(out.join("room.direction.png"))
+        .unwrap()
+        .into_rgb8();
     assert_eq!(preview.dimensions(), (24, 16));
     assert!(mean.pixels().any(|p| p.0[0] > 0.0));
     for (a, b) in lit.pixels().zip(lit_n.pixels()) {
@@ -411,11 +423,26 @@ fn first_hit(baked: &Baked, lvl: &Level, p: [f64; 2], theta: f64) -> f64 {
     let step_y = if dy > 0.0 { 1 } else { -1 };
     let next = |c: i64, s: i64| if s > 0 { c as f64 + 1.0 } else { c as f64 };
     loop {
-        let tx = if dx.abs() < 1e-300 { f64::INFINITY } else { (next(cx, step_x) - p[0]) / dx };
-        let ty = if dy.abs() < 1e-300 { f64::INFINITY } else { (next(cy, step_y) - p[1]) / dy };
+        let tx = if dx.abs() < 1e-300 {
+            f64::INFINITY
+        } else {
+            (next(cx, step_x) - p[0]) / dx
+        };
+        let ty = if dy.abs() < 1e-300 {
+            f64::INFINITY
+        } else {
+            (next(cy, step_y) - p[1]) / dy
+        };
         let (normal, t) = if tx < ty {
             cx += step_x;
-            (if step_x > 0 { Normal::Left } else { Normal::Right }, tx)
+            (
+                if step_x > 0 {
+                    Normal::Left
+                } else {
+                    Normal::Right
+                },
+                tx,
+            )
         } else {
             cy += step_y;
             (if step_y > 0 { Normal::Up } else { Normal::Down }, ty)
@@ -424,7 +451,11 @@ fn first_hit(baked: &Baked, lvl: &Level, p: [f64; 2], theta: f64) -> f64 {
             continue;
         }
         let hit = [p[0] + t * dx, p[1] + t * dy];
-        let (line, s) = if normal.is_vertical_edge() { (hit[0], hit[1]) } else { (hit[1], hit[0]) };
+        let (line, s) = if normal.is_vertical_edge() {
+            (hit[0], hit[1])
+        } else {
+            (hit[1], hit[0])
+        };
         for (ei, e) in baked.geometry.edges.iter().enumerate() {
             let (lo, hi) = e.extent();
             if e.normal == normal && e.line() == line.round() && s >= lo && s <= hi {
@@ -493,4 +524,169 @@ fn moments_of_reflected_light_match_a_ray_cast() {
         checked += 1;
     }
     assert_eq!(checked, 6);
+}
+
+/// The channels of an EXR that flatbake wrote (single part, scan lines, no
+/// compression, 32-bit float): name -> row-major values.
+fn read_exr_channels(bytes: &[u8]) -> std::collections::BTreeMap<String, Vec<f32>> {
+    let i32_at = |o: usize| i32::from_le_bytes(bytes[o..o + 4].try_into().unwrap());
+    let cstr = |o: usize| {
+        let end = o + bytes[o..].iter().position(|&b| b == 0).unwrap();
+        (String::from_utf8(bytes[o..end].to_vec()).unwrap(), end + 1)
+    };
+    let (mut o, mut names, mut window) = (8, Vec::new(), [0i32; 4]);
+    loop {
+        let (name, next) = cstr(o);
+        if name.is_empty() {
+            o = next;
+            break;
+        }
+        let (_, next) = cstr(next);
+        let size = i32_at(next) as usize;
+        let value = next + 4;
+        if name == "channels" {
+            let mut c = value;
+            while bytes[c] != 0 {
+                let (n, after) = cstr(c);
+                assert_eq!(i32_at(after), 2, "FLOAT channels");
+                names.push(n);
+                c = after + 16;
+            }
+        }
+        if name == "dataWindow" {
+            window = [0, 1, 2, 3].map(|k| i32_at(value + 4 * k));
+        }
+        o = value + size;
+    }
+    let (w, h) = ((window[2] + 1) as usize, (window[3] + 1) as usize);
+    o += 8 * h; // offset table
+    let mut out: std::collections::BTreeMap<String, Vec<f32>> = names
+        .iter()
+        .map(|n| (n.clone(), vec![0.0; w * h]))
+        .collect();
+    for y in 0..h {
+        assert_eq!(i32_at(o), y as i32);
+        o += 8;
+        for n in &names {
+            let v = out.get_mut(n).unwrap();
+            for x in 0..w {
+                v[y * w + x] = f32::from_le_bytes(bytes[o..o + 4].try_into().unwrap());
+                o += 4;
+            }
+        }
+    }
+    out
+}
+
+/// A room with two light groups, baked with layers and a cache: the
+/// layers' moments add up to the level's, the cache relights to the same
+/// bytes with the same emission, and to twice the moments with twice the
+/// emission of every light.
+#[test]
+fn layers_relight_and_caches_carry_the_moments() {
+    let dir = tempfile::tempdir().unwrap();
+    let levels = dir.path().join("levels");
+    std::fs::create_dir_all(&levels).unwrap();
+    let (w, h) = (24u32, 16u32);
+    let img = image::RgbaImage::from_fn(w, h, |x, y| {
+        let px = |c: [u8; 3]| image::Rgba([c[0], c[1], c[2], 255]);
+        if y == 0 && (3..8).contains(&x) {
+            px([255, 250, 220])
+        } else if x == w - 1 && (8..13).contains(&y) {
+            px([160, 200, 255])
+        } else if x == 0 || y == 0 || x == w - 1 || y == h - 1 || (x == 12 && y > 6) {
+            px([90, 90, 90])
+        } else {
+            px([180, 170, 150])
+        }
+    });
+    img.save(levels.join("duo.png")).unwrap();
+    std::fs::write(
+        levels.join("duo.palette.toml"),
+        "[[wall]]\ncolor = \"#5a5a5a\"\nreflectance = 0.6\n\n\
+         [[emitter]]\ncolor = \"#fffadc\"\nemission = [2.0, 1.8, 1.5]\n\n\
+         [[emitter]]\ncolor = \"#a0c8ff\"\nemission = [0.5, 1.0, 2.0]\n",
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    let o = flatbake(&[
+        "bake",
+        s(&levels.join("duo.png")),
+        "-o",
+        s(&out),
+        "--directional",
+        "--layers",
+        "--cache",
+        "--quiet",
+    ]);
+    assert_exit(&o, 0);
+    let read = |p: std::path::PathBuf| {
+        read_exr_channels(&std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display())))
+    };
+    let full = read(out.join("duo.directional.exr"));
+    // The mean channels are the lightmap EXR's.
+    let plain = image::open(out.join("duo.lightmap.exr"))
+        .unwrap()
+        .into_rgb32f();
+    for (i, p) in plain.pixels().enumerate() {
+        assert_eq!(full["R"][i], p.0[0]);
+    }
+    let layers: Vec<_> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| {
+            p.to_string_lossy().ends_with(".directional.exr")
+                && p.to_string_lossy().contains(".layer-")
+        })
+        .collect();
+    assert_eq!(layers.len(), 2, "{layers:?}");
+    let parts: Vec<_> = layers.into_iter().map(read).collect();
+    let brightest = full["R"].iter().copied().fold(0f32, f32::max);
+    let mut moving = 0;
+    for ch in [
+        "cos.R", "cos.G", "cos.B", "sin.R", "sin.G", "sin.B", "R", "B",
+    ] {
+        for i in 0..full[ch].len() {
+            let sum: f32 = parts.iter().map(|p| p[ch][i]).sum();
+            assert!(
+                (sum - full[ch][i]).abs() <= 1e-5 * brightest,
+                "{ch} pixel {i}: layers sum to {sum}, the level has {}",
+                full[ch][i]
+            );
+            moving += (full[ch][i] != 0.0) as usize;
+        }
+    }
+    assert!(moving > 100);
+    // The same emission again: the same bytes.
+    let cache = out.join("duo.flatbake");
+    let same = dir.path().join("same");
+    let o = flatbake(&["relight", s(&cache), "-o", s(&same)]);
+    assert_exit(&o, 0);
+    assert_eq!(
+        std::fs::read(same.join("duo.directional.exr")).unwrap(),
+        std::fs::read(out.join("duo.directional.exr")).unwrap()
+    );
+    // Twice the emission of both lights: twice the moments.
+    let twice = dir.path().join("twice");
+    let o = flatbake(&[
+        "relight",
+        s(&cache),
+        "--emission",
+        "#fffadc=4,3.6,3",
+        "--emission",
+        "#a0c8ff=1,2,4",
+        "-o",
+        s(&twice),
+    ]);
+    assert_exit(&o, 0);
+    let doubled = read(twice.join("duo.directional.exr"));
+    for ch in ["cos.R", "cos.G", "cos.B", "sin.R", "sin.G", "sin.B"] {
+        for i in 0..full[ch].len() {
+            let (a, b) = (full[ch][i], doubled[ch][i]);
+            assert!(
+                (2.0 * a - b).abs() <= 1e-6 * brightest,
+                "{ch} pixel {i}: 2 x {a} vs {b}"
+            );
+        }
+    }
 }

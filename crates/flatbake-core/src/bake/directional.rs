@@ -38,7 +38,12 @@ impl Directional {
 
 /// The moments of the plan's channel classes out of `gathered`, if it
 /// holds moments.
-pub fn assemble(width: usize, height: usize, plan: &Plan, gathered: &Gathered) -> Option<Directional> {
+pub fn assemble(
+    width: usize,
+    height: usize,
+    plan: &Plan,
+    gathered: &Gathered,
+) -> Option<Directional> {
     if !gathered.directional {
         return None;
     }

@@ -393,7 +393,20 @@ pub fn bake_with_progress(
     let t = Instant::now();
     let gathered = light::gather(&ctx, &scene, &plan, &mut transport, &solved, &mut log);
     let mut assembled = lightmap::assemble(&ctx, &scene, &plan, &solved, &gathered);
-    let directional = directional::assemble(level.width, level.height, &plan, &gathered);
+    // With responses the lightmap is their sum (so that layers add up to
+    // it), and so are the moments.
+    let directional = match &assembled.responses {
+        Some(r) if settings.directional => {
+            let e: Vec<[f64; 3]> = r
+                .emitters
+                .iter()
+                .map(|&m| level.materials[m].emission)
+                .collect();
+            r.combine_moments(&e)
+                .or_else(|| directional::assemble(level.width, level.height, &plan, &gathered))
+        }
+        _ => directional::assemble(level.width, level.height, &plan, &gathered),
+    };
     timed(&mut timings.gather, t);
     timed(&mut timings.total, t_total);
     lightmap::clamp(&mut assembled.lightmap, &mut log);

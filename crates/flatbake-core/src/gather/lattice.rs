@@ -31,12 +31,7 @@ pub const STEPS: [i32; 2] = [8, 4];
 /// interpolated when, in every component, each probe's light differs from
 /// the mean of the corners it lies between by at most `relative` of the
 /// larger of the two plus `absolute`.
-pub(super) fn gather(
-    exact: &Exact,
-    pixels: &[[i32; 2]],
-    relative: f64,
-    absolute: f64,
-) -> Gather {
+pub(super) fn gather(exact: &Exact, pixels: &[[i32; 2]], relative: f64, absolute: f64) -> Gather {
     let g = exact.geometry;
     let (w, h) = (g.width as i32, g.height as i32);
     let k = exact.components();

@@ -101,15 +101,15 @@ pub fn normal_map_beside(level_image: &Path) -> Option<std::path::PathBuf> {
     p.is_file().then_some(p)
 }
 
-/// Encodes the directional outputs of one level: `NAME.directional.exr`,
-/// `NAME.direction.png`, and `NAME.lit-normals.png` when `normals` is given.
-pub fn encode_directional(
+/// The mean of `map` and the moments `dir` as one EXR (`NAME.directional.exr`,
+/// or a layer's): channels `R`, `G`, `B` the mean, `cos.R` ... `sin.B` the
+/// moments, 0 off the floor.
+pub fn moments_exr(
     level: &Level,
     map: &Lightmap,
     dir: &Directional,
-    normals: Option<&NormalMap>,
-    opts: &OutputOptions,
-) -> Result<Vec<Encoded>, OutputError> {
+    kind: OutputKind,
+) -> Result<Encoded, OutputError> {
     let name = &level.name;
     let mean = image::hdr_pixels(level, map)?;
     let n = level.width * level.height;
@@ -143,11 +143,28 @@ pub fn encode_directional(
             _ => dir.sin[i][k - 6],
         }
     };
-    let exr = super::exr::encode_exr_channels(level.width, level.height, &channels, value)
+    let bytes = super::exr::encode_exr_channels(level.width, level.height, &channels, value)
         .map_err(|message| OutputError::Encode {
-            path: OutputKind::DirectionalExr.file_name(name).into(),
+            path: kind.file_name(name).into(),
             message,
         })?;
+    Ok(Encoded { kind, bytes })
+}
+
+/// Encodes the directional outputs of one level: `NAME.directional.exr`,
+/// `NAME.direction.png`, and `NAME.lit-normals.png` when `normals` is given.
+pub fn encode_directional(
+    level: &Level,
+    map: &Lightmap,
+    dir: &Directional,
+    normals: Option<&NormalMap>,
+    opts: &OutputOptions,
+) -> Result<Vec<Encoded>, OutputError> {
+    let name = &level.name;
+    let mut files = vec![moments_exr(level, map, dir, OutputKind::DirectionalExr)?];
+    let mean = image::hdr_pixels(level, map)?;
+    let n = level.width * level.height;
+    let floor = |i: usize| level.cells[i] == Cell::Floor;
     let png = |kind: OutputKind, img: &DynamicImage| {
         encode_png(img)
             .map(|bytes| Encoded {
@@ -159,10 +176,6 @@ pub fn encode_directional(
                 message: e.to_string(),
             })
     };
-    let mut files = vec![Encoded {
-        kind: OutputKind::DirectionalExr,
-        bytes: exr,
-    }];
     let (w, h) = (level.width as u32, level.height as u32);
     let preview = ::image::RgbImage::from_fn(w, h, |x, y| {
         let i = y as usize * level.width + x as usize;
@@ -183,7 +196,10 @@ pub fn encode_directional(
         if nm.normals.len() != n {
             return Err(OutputError::Invalid {
                 level: name.clone(),
-                message: format!("the normal map has {} pixels, the level {n}", nm.normals.len()),
+                message: format!(
+                    "the normal map has {} pixels, the level {n}",
+                    nm.normals.len()
+                ),
             });
         }
         let shaded = Lightmap {
@@ -192,7 +208,8 @@ pub fn encode_directional(
             rgb: (0..n)
                 .map(|i| {
                     if floor(i) {
-                        [0, 1, 2].map(|c| shade(mean[i][c], dir.cos[i][c], dir.sin[i][c], nm.normals[i]))
+                        [0, 1, 2]
+                            .map(|c| shade(mean[i][c], dir.cos[i][c], dir.sin[i][c], nm.normals[i]))
                     } else {
                         map.rgb[i]
                     }

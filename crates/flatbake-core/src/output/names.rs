@@ -44,8 +44,8 @@ pub fn is_output_image(file_name: &str) -> bool {
         ".lit-normals.",
         ".normals.",
     ]
-        .iter()
-        .any(|s| file_name.contains(s))
+    .iter()
+    .any(|s| file_name.contains(s))
 }
 
 /// The normal map flatbake reads beside level `name` for the lit preview of
@@ -92,6 +92,8 @@ pub enum OutputKind {
     DirectionPng,
     /// `NAME.lit-normals.png`: the lit image shaded by the level's normal map.
     LitNormalsPng,
+    /// `NAME.layer-TAG.directional.exr`: one light group's mean and moments.
+    LayerDirectionalExr(String),
 }
 
 impl OutputKind {
@@ -115,6 +117,7 @@ impl OutputKind {
             OutputKind::DirectionalExr => "directional.exr".into(),
             OutputKind::DirectionPng => "direction.png".into(),
             OutputKind::LitNormalsPng => "lit-normals.png".into(),
+            OutputKind::LayerDirectionalExr(tag) => format!("layer-{tag}.directional.exr"),
         }
     }
 

@@ -157,8 +157,14 @@ mod tests {
                         _ => (d * (b.t1 - a.t1), b.t2 - a.t2),
                     };
                     let scale = 1e-7 * (1.0 + n.abs() + t.abs());
-                    assert!((gn - n).abs() < scale, "{fall:?} d {d} j {j}: N {gn} vs {n}");
-                    assert!((gt - t).abs() < scale, "{fall:?} d {d} j {j}: T {gt} vs {t}");
+                    assert!(
+                        (gn - n).abs() < scale,
+                        "{fall:?} d {d} j {j}: N {gn} vs {n}"
+                    );
+                    assert!(
+                        (gt - t).abs() < scale,
+                        "{fall:?} d {d} j {j}: T {gt} vs {t}"
+                    );
                 }
             }
         }
