@@ -235,7 +235,7 @@ fn luminance(c: [f32; 3]) -> f32 {
 /// the mean (0: light from all sides alike, 1: from one direction).
 pub fn direction_colour(mean: f32, cos: f32, sin: f32) -> [u8; 3] {
     let len = cos.hypot(sin);
-    if !(mean > 0.0) || !len.is_finite() {
+    if mean.is_nan() || mean <= 0.0 || !len.is_finite() {
         return [0, 0, 0];
     }
     let v = (len / mean).clamp(0.0, 1.0);
