@@ -15,8 +15,9 @@ pub struct Gathered {
     /// `values[i * components + k]`: component `k` at `reached[i]`.
     pub values: Vec<f64>,
     /// With [`Settings::directional`](super::Settings::directional):
-    /// `moments[i * 2 * components + k]` the cosine and `[... + components
-    /// + k]` the sine moment of component `k` at `reached[i]` (else empty).
+    /// `moments[i * 2 * components + k]` the cosine and
+    /// `moments[i * 2 * components + components + k]` the sine moment of
+    /// component `k` at `reached[i]` (else empty).
     pub moments: Vec<f64>,
     /// Whether moments were asked for.
     pub directional: bool,

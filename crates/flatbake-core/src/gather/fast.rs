@@ -123,7 +123,7 @@ pub struct GatherOptions<'a> {
     /// flatland kernel only). `None`: gather every pixel exactly.
     pub lattice: Option<f64>,
     /// Also compute the first circular moments of every pixel's light
-    /// ([`super::directional`]; the flatland kernel only). Default off.
+    /// (`gather/directional.rs`; the flatland kernel only). Default off.
     pub directional: bool,
 }
 
@@ -131,9 +131,9 @@ pub struct GatherOptions<'a> {
 pub struct Gather {
     /// `values[i * components + k]`: component `k` at pixel `i`.
     pub values: Vec<f64>,
-    /// With [`GatherOptions::directional`], `moments[i * 2 * components +
-    /// k]` the cosine and `[... + components + k]` the sine moment of
-    /// component `k` at pixel `i` (else empty).
+    /// With [`GatherOptions::directional`], `moments[i * 2 * components + k]`
+    /// the cosine and `moments[i * 2 * components + components + k]` the
+    /// sine moment of component `k` at pixel `i` (else empty).
     pub moments: Vec<f64>,
     /// The visibility queries' counts.
     pub stats: VisitStats,
