@@ -166,6 +166,9 @@ pub struct OutputArgs {
     /// How far (pixels) an occluder outline may stray from the traced walls.
     #[arg(long, value_name = "PX", default_value_t = flatbake_core::output::occluders::DEFAULT_TOLERANCE, value_parser = parse_occluder_tolerance, allow_negative_numbers = true)]
     pub occluder_tolerance: f64,
+    /// Also write the directional lightmap: the light's mean and first circular moments (NAME.directional.exr), its dominant direction (NAME.direction.png) and, beside a normal map NAME.normals.png, NAME.lit-normals.png.
+    #[arg(long)]
+    pub directional: bool,
     /// Bits per channel of the PNG outputs.
     #[arg(long, value_name = "BITS", default_value_t = 8, value_parser = parse_depth, allow_negative_numbers = true)]
     pub depth: u8,
@@ -525,7 +528,13 @@ pub fn batch_options(a: &BakeArgs) -> Result<BatchOptions, String> {
         max_memory: a.max_memory.bytes(),
         shard: a.shard,
         occluders: o.occluders.then_some(o.occluder_tolerance),
+        directional: o.directional,
     };
+    if opts.directional && (opts.kernel != Kernel::Flatland || opts.gather != GatherMethod::Fast) {
+        return Err(
+            "--directional needs the flatland kernel and the fast gather: leave out --kernel paper and --gather naive".into(),
+        );
+    }
     Ok(match o.engine {
         Some(e) => opts.with_engine(e.into()),
         None => opts,

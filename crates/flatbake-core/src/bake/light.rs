@@ -14,6 +14,13 @@ pub struct Gathered {
     pub reached: Vec<[i32; 2]>,
     /// `values[i * components + k]`: component `k` at `reached[i]`.
     pub values: Vec<f64>,
+    /// With [`Settings::directional`](super::Settings::directional):
+    /// `moments[i * 2 * components + k]` the cosine and
+    /// `moments[i * 2 * components + components + k]` the sine moment of
+    /// component `k` at `reached[i]` (else empty).
+    pub moments: Vec<f64>,
+    /// Whether moments were asked for.
+    pub directional: bool,
     /// Values per pixel: the plan's channel classes, then the responses.
     pub components: usize,
     /// Floor pixels left at 0: in regions no light reaches, or with every
@@ -76,6 +83,8 @@ pub fn gather(
     Gathered {
         reached,
         values: run.values,
+        moments: run.moments,
+        directional: ctx.settings.directional,
         components: kk,
         unreached: if kk > 0 {
             unreached.len() + run.unreached
@@ -123,6 +132,7 @@ impl ReachRule {
 #[derive(Default)]
 struct Run {
     values: Vec<f64>,
+    moments: Vec<f64>,
     culled_pairs: u64,
     /// Pixels whose every lit candidate edge is hidden or out of reach.
     unreached: usize,
@@ -148,8 +158,14 @@ fn run(
                 decide: rule.decide,
                 progress: ctx.gather_progress.map(gather::OnProgress),
                 lattice: settings.knobs.lattice.filter(|_| !settings.exhaustive),
+                directional: settings.directional,
             };
-            let (values, stats, counts) = gather::gather(geometry, patches, rad, reached, &options);
+            let gather::Gather {
+                values,
+                moments,
+                stats,
+                counts,
+            } = gather::gather_with_moments(geometry, patches, rad, reached, &options);
             if counts.interpolated > 0 {
                 log.skip(
                     "pixels",
@@ -172,6 +188,7 @@ fn run(
             }
             Run {
                 values,
+                moments,
                 culled_pairs: stats.culled_pairs,
                 unreached: stats.unreached as usize,
             }

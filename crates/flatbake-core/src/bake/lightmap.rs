@@ -119,6 +119,25 @@ fn responses(
                     .collect()
             })
             .collect();
+        // The moments of each response, per unit emission, when asked for.
+        let moments =
+            if gathered.directional && gathered.moments.len() == gathered.reached.len() * 2 * kk {
+                (0..solved.responses.len())
+                    .map(|j| {
+                        let mut img = vec![[0f32; 2]; n];
+                        for (i, p) in gathered.reached.iter().enumerate() {
+                            let m = &gathered.moments[i * 2 * kk..(i + 1) * 2 * kk];
+                            img[p[1] as usize * level.width + p[0] as usize] = [
+                                (m[k_main + j] / TRACED_EMISSION) as f32,
+                                (m[kk + k_main + j] / TRACED_EMISSION) as f32,
+                            ];
+                        }
+                        img
+                    })
+                    .collect()
+            } else {
+                Vec::new()
+            };
         Responses {
             width: level.width,
             height: level.height,
@@ -127,6 +146,7 @@ fn responses(
             rho_classes: rp.rho_reps.len(),
             images,
             traced_emission: TRACED_EMISSION,
+            moments,
         }
     })
 }

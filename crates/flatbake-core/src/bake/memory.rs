@@ -21,7 +21,10 @@
 //! - the dense fallback solve of systems up to the solver's fallback size,
 //!   8 bytes per matrix entry;
 //! - per-emitter responses (light layers, relight caches): 12 bytes per
-//!   pixel per emitter material and reflectance class.
+//!   pixel per emitter material and reflectance class;
+//! - directional moments ([`super::Settings::directional`]): per pixel 32
+//!   bytes per gathered component (two f64 moments, and draft's copy) and
+//!   24 for the moments kept, and 8 more per response.
 
 use super::{Ctx, Plan, Scene};
 use crate::gather::Kernel;
@@ -88,8 +91,19 @@ impl MemoryEstimate {
         let responses = plan.responses.as_ref().map_or(0, |rp| {
             (rp.emitters.len() as u64) * (rp.rho_reps.len() as u64) * pixels * 12
         });
+        let directional = if ctx.settings.directional {
+            let traced = plan
+                .responses
+                .as_ref()
+                .map_or(0, |rp| (rp.emitters.len() * rp.rho_reps.len()) as u64);
+            let components = plan.channels.classes.len() as u64 + traced;
+            pixels.saturating_mul(32 * components + 24 + 8 * traced)
+        } else {
+            0
+        };
         let bytes = BASE
             .saturating_add(pixels.saturating_mul(PER_PIXEL))
+            .saturating_add(directional)
             .saturating_add(n.saturating_mul(PER_PATCH))
             .saturating_add(point_entries.saturating_mul(PER_POINT_ENTRY))
             .saturating_add(dense)

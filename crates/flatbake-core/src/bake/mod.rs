@@ -24,6 +24,7 @@
 //! simulated and why.
 
 pub mod checks;
+pub mod directional;
 pub mod factors;
 pub mod light;
 pub mod lightmap;
@@ -36,6 +37,7 @@ pub mod scene;
 
 use std::time::Instant;
 
+pub use directional::Directional;
 pub use factors::Transport;
 pub use light::Gathered;
 pub use lightmap::Lightmap;
@@ -109,6 +111,10 @@ pub struct Settings {
     /// memory ([`MemoryEstimate`]) is above this many bytes. Default: no
     /// limit (the command line passes the memory the machine has free).
     pub max_memory: Option<u64>,
+    /// Also compute the first circular moments of every floor pixel's light
+    /// ([`Directional`]), for normal-mapped sprites. The flatland kernel and
+    /// the fast gather only. Default off; off costs nothing.
+    pub directional: bool,
 }
 
 impl Settings {
@@ -125,6 +131,7 @@ impl Settings {
             responses: false,
             exhaustive: false,
             max_memory: None,
+            directional: false,
         }
     }
 }
@@ -163,6 +170,9 @@ pub enum BakeError {
     /// reported instead of a panic.
     #[error("internal error: {0} (please report this level)")]
     Internal(&'static str),
+    /// Settings that do not go together.
+    #[error("{0}")]
+    Unsupported(&'static str),
 }
 
 /// The pixels of a closed region whose walls reflect everything, and the
@@ -236,6 +246,9 @@ pub struct Baked {
     pub report: Report,
     /// Per-emitter light, when [`Settings::responses`] asked for it.
     pub responses: Option<Responses>,
+    /// The light's first circular moments, when [`Settings::directional`]
+    /// asked for them.
+    pub directional: Option<Directional>,
 }
 
 /// What every stage of one bake reads: the level, the settings and what
@@ -329,6 +342,13 @@ pub fn bake_with_progress(
     gathered: &(dyn Fn(f64) + Sync),
 ) -> Result<Baked, BakeError> {
     let t_total = Instant::now();
+    if settings.directional
+        && (settings.kernel != Kernel::Flatland || settings.gather != GatherMethod::Fast)
+    {
+        return Err(BakeError::Unsupported(
+            "directional lightmaps need the flatland kernel and the fast gather (leave out --kernel paper and --gather naive)",
+        ));
+    }
     let mut ctx = Ctx::new(level, settings);
     ctx.gather_progress = Some(gathered);
     let mut timings = Timings::default();
@@ -373,6 +393,20 @@ pub fn bake_with_progress(
     let t = Instant::now();
     let gathered = light::gather(&ctx, &scene, &plan, &mut transport, &solved, &mut log);
     let mut assembled = lightmap::assemble(&ctx, &scene, &plan, &solved, &gathered);
+    // With responses the lightmap is their sum (so that layers add up to
+    // it), and so are the moments.
+    let directional = match &assembled.responses {
+        Some(r) if settings.directional => {
+            let e: Vec<[f64; 3]> = r
+                .emitters
+                .iter()
+                .map(|&m| level.materials[m].emission)
+                .collect();
+            r.combine_moments(&e)
+                .or_else(|| directional::assemble(level.width, level.height, &plan, &gathered))
+        }
+        _ => directional::assemble(level.width, level.height, &plan, &gathered),
+    };
     timed(&mut timings.gather, t);
     timed(&mut timings.total, t_total);
     lightmap::clamp(&mut assembled.lightmap, &mut log);
@@ -396,5 +430,6 @@ pub fn bake_with_progress(
         lightmap: assembled.lightmap,
         report,
         responses: assembled.responses,
+        directional,
     })
 }

@@ -28,6 +28,11 @@ pub struct Responses {
     /// divided by it). With falloff, the pairs culled were chosen against it,
     /// independently of the palette's emission.
     pub traced_emission: f64,
+    /// With [`Settings::directional`](super::Settings::directional), the
+    /// first circular moments `[cos, sin]` per pixel of each image, in the
+    /// order of `images` and per unit emission (0 on solid and void pixels);
+    /// empty otherwise.
+    pub moments: Vec<Vec<[f32; 2]>>,
 }
 
 impl Responses {
@@ -55,5 +60,32 @@ impl Responses {
             }
         }
         rgb
+    }
+
+    /// The moments for `emission[m]` per emitter, as [`Responses::combine`]
+    /// weights the images: `None` when the responses hold no moments.
+    pub fn combine_moments(&self, emission: &[[f64; 3]]) -> Option<super::Directional> {
+        if self.moments.len() != self.images.len() || self.moments.is_empty() {
+            return None;
+        }
+        let mut d = super::Directional::zero(self.width, self.height);
+        for (m, e) in emission.iter().enumerate().take(self.emitters.len()) {
+            for c in 0..3 {
+                if e[c] == 0.0 {
+                    continue;
+                }
+                let img = &self.moments[m * self.rho_classes + self.rho_class_of[c]];
+                for (i, v) in img.iter().enumerate() {
+                    d.cos[i][c] += (e[c] * v[0] as f64) as f32;
+                    d.sin[i][c] += (e[c] * v[1] as f64) as f32;
+                }
+            }
+        }
+        for v in d.cos.iter_mut().chain(d.sin.iter_mut()).flatten() {
+            if !v.is_finite() {
+                *v = 0.0;
+            }
+        }
+        Some(d)
     }
 }

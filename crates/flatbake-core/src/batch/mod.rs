@@ -88,6 +88,10 @@ pub struct BatchOptions {
     /// Also write the wall loops as occluder polygons simplified within
     /// this many pixels ([`output::occluders`]); `None`: not written.
     pub occluders: Option<f64>,
+    /// Also write the directional lightmap (`NAME.directional.exr`,
+    /// `NAME.direction.png`, and `NAME.lit-normals.png` for a level with
+    /// `NAME.normals.png` beside it; [`output::directional`]). Default off.
+    pub directional: bool,
 }
 
 impl BatchOptions {
@@ -113,6 +117,9 @@ impl BatchOptions {
         }
         if let Some(t) = self.occluders {
             added.push_str(&format!(" occluders {t:?}"));
+        }
+        if self.directional {
+            added.push_str(" directional");
         }
         format!(
             "{:?}{:?}{added}",
@@ -172,6 +179,7 @@ impl BatchOptions {
         settings.gather = self.gather;
         settings.responses = self.layers || self.cache;
         settings.max_memory = self.max_memory;
+        settings.directional = self.directional;
         settings
     }
 
@@ -223,6 +231,7 @@ impl Default for BatchOptions {
             max_memory: None,
             shard: None,
             occluders: None,
+            directional: false,
         }
     }
 }
@@ -627,6 +636,23 @@ pub fn bake_one(path: &Path, opts: &BatchOptions, observer: &dyn Observer) -> Re
                 bytes,
             });
         }
+    }
+    if let Some(dir) = &baked.directional {
+        let normals = match output::directional::normal_map_beside(path) {
+            Some(p) => Some(output::directional::NormalMap::read(
+                &p,
+                level.width,
+                level.height,
+            )?),
+            None => None,
+        };
+        extra.extend(output::directional::encode_directional(
+            &level,
+            &baked.lightmap,
+            dir,
+            normals.as_ref(),
+            &out_opts,
+        )?);
     }
     if let Some(tolerance) = opts.occluders {
         extra.extend(output::occluders::encode_occluders(

@@ -156,11 +156,33 @@ pub fn relight(cache_path: &Path, opts: &RelightOptions) -> Result<Report> {
     let _lock = super::FolderLock::acquire(&opts.out_dir, || {});
     output::ensure_output_dir(&opts.out_dir)?;
     let images = output::encode_images(&level, &map, &out_opts)?;
-    let layers = if opts.layers {
+    let mut layers = if opts.layers {
         output::layers::encode_layers(&level, &cache.responses, &emission, &out_opts)?
     } else {
         Vec::new()
     };
+    // A cache of a directional bake holds the moments: relit the same way.
+    if let Some(d) = cache.responses.combine_moments(&emission) {
+        let normals = match opts
+            .level_image
+            .as_deref()
+            .and_then(output::directional::normal_map_beside)
+        {
+            Some(p) => Some(output::directional::NormalMap::read(
+                &p,
+                level.width,
+                level.height,
+            )?),
+            None => None,
+        };
+        layers.extend(output::directional::encode_directional(
+            &level,
+            &map,
+            &d,
+            normals.as_ref(),
+            &out_opts,
+        )?);
+    }
     output::write_level_files(
         &opts.out_dir,
         &level.name,

@@ -77,6 +77,15 @@ pub fn inputs(recipe: &Recipe) -> Result<Inputs> {
             h.update(&read(&tsx)?);
         }
     }
+    // A directional bake's lit preview reads the normal map beside the
+    // level, when there is one (hashed only then: other stamps stay as
+    // they were).
+    if recipe.settings.contains(" directional")
+        && let Some(normals) = crate::output::directional::normal_map_beside(recipe.image)
+    {
+        h.update(b"\0normals\0");
+        h.update(&read(&normals)?);
+    }
     // The palette that the lookup picks: which file, and its bytes.
     let palette_file = match recipe.palette {
         Some(p) => Some(p.to_path_buf()),

@@ -44,13 +44,13 @@ impl std::ops::AddAssign for GatherCounts {
 pub struct PixelScratch {
     /// Emitting spans: their starts (with their lines), their ends, their
     /// edges, and the integrals between.
-    em: GatherPoints,
-    em_end: Vec<f64>,
-    em_edge: Vec<u32>,
+    pub(super) em: GatherPoints,
+    pub(super) em_end: Vec<f64>,
+    pub(super) em_edge: Vec<u32>,
     em_g: Vec<f64>,
     /// Reflected light: for every reflecting span its start, then the end
     /// of each of its pieces; the three antiderivatives there.
-    pts: GatherPoints,
+    pub(super) pts: GatherPoints,
     f: Vec<f64>,
     l: Vec<f64>,
     q: Vec<f64>,
@@ -64,6 +64,12 @@ impl PixelScratch {
     /// Empty scratch; it grows to what the pixels need.
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// The reflected pieces of the last pixel, in order: tree node, index
+    /// of the end point in `pts`, node centre relative to the foot.
+    pub(super) fn pieces_at(&self) -> impl Iterator<Item = (u32, u32, f64)> + '_ {
+        self.pieces.iter().map(|p| (p.node, p.end, p.off))
     }
 }
 
@@ -116,6 +122,23 @@ pub struct GatherOptions<'a> {
     /// smooth to within this relative tolerance ([`super::lattice`]; the
     /// flatland kernel only). `None`: gather every pixel exactly.
     pub lattice: Option<f64>,
+    /// Also compute the first circular moments of every pixel's light
+    /// (`gather/directional.rs`; the flatland kernel only). Default off.
+    pub directional: bool,
+}
+
+/// What [`gather_with_moments`] returns.
+pub struct Gather {
+    /// `values[i * components + k]`: component `k` at pixel `i`.
+    pub values: Vec<f64>,
+    /// With [`GatherOptions::directional`], `moments[i * 2 * components + k]`
+    /// the cosine and `moments[i * 2 * components + components + k]` the
+    /// sine moment of component `k` at pixel `i` (else empty).
+    pub moments: Vec<f64>,
+    /// The visibility queries' counts.
+    pub stats: VisitStats,
+    /// What was merged and interpolated.
+    pub counts: GatherCounts,
 }
 
 /// A callback told the fraction (0 to 1) of a gather that is done; called
@@ -469,6 +492,20 @@ pub fn gather(
     pixels: &[[i32; 2]],
     options: &GatherOptions,
 ) -> (Vec<f64>, VisitStats, GatherCounts) {
+    let g = gather_with_moments(geometry, patches, rad, pixels, options);
+    (g.values, g.stats, g.counts)
+}
+
+/// [`gather`], with the pixels' first circular moments when the options
+/// ask for them ([`GatherOptions::directional`]): gathered with the same
+/// spans and interpolated with the same weights as the light.
+pub fn gather_with_moments(
+    geometry: &Geometry,
+    patches: &Patches,
+    rad: &Radiosity,
+    pixels: &[[i32; 2]],
+    options: &GatherOptions,
+) -> Gather {
     let GatherOptions {
         falloff,
         kernel,
@@ -477,6 +514,7 @@ pub fn gather(
         ref decide,
         progress,
         lattice,
+        directional,
     } = *options;
     let tree = PatchTree::new(
         &geometry.edges,
@@ -503,6 +541,7 @@ pub fn gather(
         reach_max: reach.max,
         reach2: &reach2,
         tally: &tally,
+        directional: directional && kernel == Kernel::Flatland,
     };
     match lattice {
         Some(relative) if kernel == Kernel::Flatland => {
@@ -510,7 +549,12 @@ pub fn gather(
         }
         _ => {
             let pass = exact.run(pixels, None);
-            (pass.values, pass.stats, pass.counts)
+            Gather {
+                values: pass.values,
+                moments: pass.moments,
+                stats: pass.stats,
+                counts: pass.counts,
+            }
         }
     }
 }
@@ -523,12 +567,17 @@ pub(super) struct Exact<'a> {
     reach_max: f64,
     reach2: &'a [f64],
     tally: &'a Tally<'a>,
+    /// Also the moments ([`Pass::moments`]).
+    pub directional: bool,
 }
 
 /// What one exact pass over a list of pixels returned.
 pub(super) struct Pass {
     /// `values[i * components + k]` for the pass's pixel `i`.
     pub values: Vec<f64>,
+    /// With [`Exact::directional`], `moments[i * 2 * components + ..]`:
+    /// the cosine moments of the components, then the sine moments.
+    pub moments: Vec<f64>,
     /// Per pixel (when asked for): its [`signature`].
     pub signature: Vec<u64>,
     pub stats: VisitStats,
@@ -566,6 +615,9 @@ impl Exact<'_> {
             .collect();
         let shared = Disjoint::new(&mut out);
         let shared_sig = Disjoint::new(&mut sigs);
+        let directional = self.directional;
+        let mut moments = vec![0.0; if directional { pixels.len() * 2 * k } else { 0 }];
+        let shared_moments = Disjoint::new(&mut moments);
         // What each pixel merged, summed afterwards (a lock or an atomic shared
         // by every pixel costs more than the pixel's own bookkeeping).
         let mut merged = vec![[0u32; 2]; pixels.len()];
@@ -591,6 +643,20 @@ impl Exact<'_> {
                 let (c, sig) = SCRATCH.with(|sc| {
                     let sc = &mut *sc.borrow_mut();
                     let c = pixel_light(light, pos[i], spans, acc, sc);
+                    if directional {
+                        let (mut small, mut big) = ([0.0; 6], Vec::new());
+                        let m = if k <= 3 {
+                            &mut small[..2 * k]
+                        } else {
+                            big.resize(2 * k, 0.0);
+                            &mut big[..]
+                        };
+                        super::directional::pixel_moments(light, pos[i], spans, sc, m);
+                        for (j, &v) in m.iter().enumerate() {
+                            // SAFETY: each pixel index is visited exactly once.
+                            unsafe { shared_moments.write(i * 2 * k + j, v) };
+                        }
+                    }
                     (
                         c,
                         signatures.map(|rel| signature(light, spans, sc, acc, rel)),
@@ -616,6 +682,7 @@ impl Exact<'_> {
         });
         Pass {
             values: out,
+            moments,
             signature: sigs,
             stats,
             counts,

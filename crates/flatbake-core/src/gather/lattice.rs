@@ -20,7 +20,7 @@
 
 use crate::visibility::VisitStats;
 
-use super::fast::{Exact, GatherCounts};
+use super::fast::{Exact, Gather, GatherCounts};
 
 /// Lattice spacings, coarsest first, in pixels: a cell that fails its test
 /// is split into cells of the next spacing, and after the last one gathered
@@ -31,12 +31,7 @@ pub const STEPS: [i32; 2] = [8, 4];
 /// interpolated when, in every component, each probe's light differs from
 /// the mean of the corners it lies between by at most `relative` of the
 /// larger of the two plus `absolute`.
-pub(super) fn gather(
-    exact: &Exact,
-    pixels: &[[i32; 2]],
-    relative: f64,
-    absolute: f64,
-) -> (Vec<f64>, VisitStats, GatherCounts) {
+pub(super) fn gather(exact: &Exact, pixels: &[[i32; 2]], relative: f64, absolute: f64) -> Gather {
     let g = exact.geometry;
     let (w, h) = (g.width as i32, g.height as i32);
     let k = exact.components();
@@ -59,6 +54,10 @@ pub(super) fn gather(
         (y0..=y0 + step).all(|y| (x0..=x0 + step).all(|x| index(x, y).is_some() && comp(x, y) == c))
     };
     let mut values = vec![0.0; pixels.len() * k];
+    // The moments, if asked for, follow the light: copied where it is
+    // gathered, interpolated with its weights where it is interpolated.
+    let km = if exact.directional { 2 * k } else { 0 };
+    let mut moments = vec![0.0; pixels.len() * km];
     let mut signature = vec![0u64; pixels.len()];
     // 0: to gather, 1: gathered, 2: interpolated.
     let mut state = vec![0u8; pixels.len()];
@@ -98,6 +97,7 @@ pub(super) fn gather(
         let pass = exact.run(&pts, Some(relative));
         for (j, &i) in want.iter().enumerate() {
             values[i * k..(i + 1) * k].copy_from_slice(&pass.values[j * k..(j + 1) * k]);
+            moments[i * km..(i + 1) * km].copy_from_slice(&pass.moments[j * km..(j + 1) * km]);
             signature[i] = pass.signature[j];
         }
         stats.culled_pairs += pass.stats.culled_pairs;
@@ -148,6 +148,13 @@ pub(super) fn gather(
                             .map(|(&j, wt)| wt * values[j * k + c])
                             .sum();
                     }
+                    for c in 0..km {
+                        moments[i * km + c] = corner
+                            .iter()
+                            .zip(wts)
+                            .map(|(&j, wt)| wt * moments[j * km + c])
+                            .sum();
+                    }
                     state[i] = 2;
                 }
             }
@@ -166,12 +173,18 @@ pub(super) fn gather(
     let pass = exact.run(&pts, None);
     for (j, &i) in rest.iter().enumerate() {
         values[i * k..(i + 1) * k].copy_from_slice(&pass.values[j * k..(j + 1) * k]);
+        moments[i * km..(i + 1) * km].copy_from_slice(&pass.moments[j * km..(j + 1) * km]);
     }
     stats.culled_pairs += pass.stats.culled_pairs;
     stats.unreached += pass.stats.unreached;
     counts += pass.counts;
     counts.interpolated = interpolated as u64;
-    (values, stats, counts)
+    Gather {
+        values,
+        moments,
+        stats,
+        counts,
+    }
 }
 
 /// The pixels at which a cell of side `step` at `(x0, y0)` is gathered

@@ -12,14 +12,15 @@
 //! per pixel, per patch, a few sample points on the patch, each ray tested
 //! against every edge.
 
+mod directional;
 mod fast;
 pub mod lattice;
 mod naive;
 mod patch_tree;
 
 pub use fast::{
-    GatherCounts, GatherOptions, Lighting, OnProgress, PixelScratch, floor_pixels, gather,
-    pixel_light,
+    Gather, GatherCounts, GatherOptions, Lighting, OnProgress, PixelScratch, floor_pixels, gather,
+    gather_with_moments, pixel_light,
 };
 pub use naive::gather_naive;
 pub use patch_tree::PatchTree;

@@ -33,7 +33,7 @@ pub const MAX_CACHE_BYTES: u64 = 8 << 30;
 /// First bytes of every cache file.
 pub const MAGIC: &[u8; 16] = b"flatbake-cache\n\0";
 /// Bumped whenever [`Cache`] changes shape.
-pub const FORMAT: u32 = 2;
+pub const FORMAT: u32 = 3;
 /// The flatbake version writing and reading caches.
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 
@@ -400,6 +400,7 @@ mod tests {
                 rho_classes: 1,
                 images: vec![vec![0.25, 1.0]],
                 traced_emission: 1.0,
+                moments: Vec::new(),
             },
         }
     }

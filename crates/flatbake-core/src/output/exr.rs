@@ -100,6 +100,22 @@ pub fn encode_exr_rgba32f(
     )
 }
 
+/// Bytes of a single-part, scan-line, uncompressed OpenEXR file of 32-bit
+/// float channels with any names (`channels`: name and the index
+/// `value(pixel, index)` reads), sorted here into the alphabetical order
+/// OpenEXR lists and stores them in. The same encoder as
+/// [`encode_exr_rgb32f`].
+pub fn encode_exr_channels(
+    width: usize,
+    height: usize,
+    channels: &[(&str, usize)],
+    value: impl Fn(usize, usize) -> f32,
+) -> Result<Vec<u8>, String> {
+    let mut sorted = channels.to_vec();
+    sorted.sort_by(|a, b| a.0.as_bytes().cmp(b.0.as_bytes()));
+    encode_exr_f32(width, height, &sorted, value)
+}
+
 /// The shared encoder: `channels` in alphabetical order (as OpenEXR lists
 /// and stores them), each with the index `value(pixel, index)` reads.
 fn encode_exr_f32(

@@ -60,6 +60,14 @@ pub enum OutputError {
         /// What is wrong.
         message: String,
     },
+    /// A level's normal map cannot be read or does not fit the level.
+    #[error("the normal map {}: {message}", .path.display())]
+    NormalMap {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
     /// The level and the lightmap handed in do not fit together (a bug in
     /// the caller, reported instead of panicking).
     #[error("cannot write the outputs of level {level}: {message}")]
@@ -89,7 +97,8 @@ impl OutputError {
             | OutputError::CreateDir { path, .. }
             | OutputError::Write { path, .. }
             | OutputError::Encode { path, .. }
-            | OutputError::Read { path, .. } => Some(path),
+            | OutputError::Read { path, .. }
+            | OutputError::NormalMap { path, .. } => Some(path),
             OutputError::Invalid { .. } => None,
         }
     }

@@ -101,6 +101,28 @@ pub fn layer(r: &Responses, emission: &[[f64; 3]], group: &Group) -> Lightmap {
     }
 }
 
+/// The moments of one group, when the responses hold moments
+/// ([`crate::bake::Settings::directional`]): as [`layer`], the other
+/// emitters switched off.
+pub fn layer_moments(
+    r: &Responses,
+    emission: &[[f64; 3]],
+    group: &Group,
+) -> Option<crate::bake::Directional> {
+    let only: Vec<[f64; 3]> = emission
+        .iter()
+        .enumerate()
+        .map(|(i, e)| {
+            if group.emitters.contains(&i) {
+                *e
+            } else {
+                [0.0; 3]
+            }
+        })
+        .collect();
+    r.combine_moments(&only)
+}
+
 /// `NAME.layers.json`: what a game needs to load and combine the layers.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct Manifest {
@@ -219,6 +241,10 @@ pub fn encode_layers(
             kind: png_kind,
             bytes: png,
         });
+        if let Some(d) = layer_moments(r, emission, &g) {
+            let kind = OutputKind::LayerDirectionalExr(g.file_tag.clone());
+            files.push(output::directional::moments_exr(level, &map, &d, kind)?);
+        }
     }
     let kind = OutputKind::LayersManifest;
     let mut json = serde_json::to_vec_pretty(&manifest).map_err(|e| OutputError::Encode {
@@ -274,6 +300,7 @@ mod tests {
                 rho_classes: 1,
                 images: vec![vec![0.0]; names.len()],
                 traced_emission: 1.0,
+                moments: Vec::new(),
             };
             let g = groups(&level, &r);
             assert_eq!(g.len(), names.len(), "{names:?}");

@@ -12,6 +12,7 @@
 //! [`names`].
 
 pub mod cache;
+pub mod directional;
 pub mod engine;
 pub mod exposure;
 pub mod exr;

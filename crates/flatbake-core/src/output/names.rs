@@ -35,9 +35,24 @@ pub fn level_name(image: &Path) -> String {
 /// True when a file name is one of flatbake's own image outputs (so a
 /// folder of levels baked into itself does not take them for levels).
 pub fn is_output_image(file_name: &str) -> bool {
-    [".lightmap.", ".lit.", ".layer-", ".rgbm."]
-        .iter()
-        .any(|s| file_name.contains(s))
+    [
+        ".lightmap.",
+        ".lit.",
+        ".layer-",
+        ".rgbm.",
+        ".direction.",
+        ".lit-normals.",
+        ".normals.",
+    ]
+    .iter()
+    .any(|s| file_name.contains(s))
+}
+
+/// The normal map flatbake reads beside level `name` for the lit preview of
+/// a directional bake: `NAME.normals.png` (an input, never written; a folder
+/// of levels does not take it for a level, see [`is_output_image`]).
+pub fn normal_map(name: &str) -> String {
+    format!("{name}.normals.png")
 }
 
 /// The files flatbake writes for one level.
@@ -73,6 +88,14 @@ pub enum OutputKind {
     OccludersSvg,
     /// `NAME.occluders.tres`: the occluder polygons as Godot `OccluderPolygon2D`s.
     OccludersTres,
+    /// `NAME.directional.exr`: the mean and first circular moments of the light.
+    DirectionalExr,
+    /// `NAME.direction.png`: the dominant direction of the light, to look at.
+    DirectionPng,
+    /// `NAME.lit-normals.png`: the lit image shaded by the level's normal map.
+    LitNormalsPng,
+    /// `NAME.layer-TAG.directional.exr`: one light group's mean and moments.
+    LayerDirectionalExr(String),
 }
 
 impl OutputKind {
@@ -94,6 +117,10 @@ impl OutputKind {
             OutputKind::OccludersJson => "occluders.json".into(),
             OutputKind::OccludersSvg => "occluders.svg".into(),
             OutputKind::OccludersTres => "occluders.tres".into(),
+            OutputKind::DirectionalExr => "directional.exr".into(),
+            OutputKind::DirectionPng => "direction.png".into(),
+            OutputKind::LitNormalsPng => "lit-normals.png".into(),
+            OutputKind::LayerDirectionalExr(tag) => format!("layer-{tag}.directional.exr"),
         }
     }
 

@@ -20,6 +20,7 @@
 
 mod factors;
 pub mod kernel;
+pub mod moments;
 pub mod paper;
 mod patches;
 pub mod solve;
