@@ -81,6 +81,9 @@ pub struct BatchOptions {
     /// Also write the wall loops as occluder polygons simplified within
     /// this many pixels ([`output::occluders`]); `None`: not written.
     pub occluders: Option<f64>,
+    /// Texel density, quadrature and wall faces of the lightmap
+    /// ([`bake::texels`]). Default: one texel per pixel, lit walls.
+    pub texels: bake::TexelOptions,
 }
 
 impl BatchOptions {
@@ -100,6 +103,7 @@ impl BatchOptions {
         if let Some(t) = self.occluders {
             added.push_str(&format!(" occluders {t:?}"));
         }
+        added.push_str(&self.texels.fingerprint());
         format!(
             "{:?}{:?}{added}",
             (
@@ -202,6 +206,7 @@ impl Default for BatchOptions {
             max_memory: None,
             shard: None,
             occluders: None,
+            texels: bake::TexelOptions::default(),
         }
     }
 }
@@ -555,9 +560,10 @@ pub fn bake_one(path: &Path, opts: &BatchOptions, observer: &dyn Observer) -> Re
     let inputs = stamp::inputs(&recipe)?;
     let load = t.elapsed().as_secs_f64();
 
-    let baked = bake::bake_with_progress(
+    let texel_bake = bake::bake_texels(
         &level,
         &opts.settings(&palette),
+        &opts.texels,
         &|stage| observer.stage(path, stage),
         &|done| observer.fraction(path, "gather", done),
     )
@@ -565,6 +571,12 @@ pub fn bake_one(path: &Path, opts: &BatchOptions, observer: &dyn Observer) -> Re
         path: path.to_path_buf(),
         source,
     })?;
+    // The outputs encode the level at texel resolution; the occluders
+    // follow the walls as painted.
+    let occluder_geometry = opts
+        .occluders
+        .map(|_| texel_bake.painted_geometry(&level).into_owned());
+    let (baked, level) = (texel_bake.baked, texel_bake.level);
     let mut report = baked.report;
     report.timings.load = load;
 
@@ -607,10 +619,10 @@ pub fn bake_one(path: &Path, opts: &BatchOptions, observer: &dyn Observer) -> Re
             });
         }
     }
-    if let Some(tolerance) = opts.occluders {
+    if let (Some(tolerance), Some(g)) = (opts.occluders, &occluder_geometry) {
         extra.extend(output::occluders::encode_occluders(
             &level.name,
-            &baked.geometry,
+            g,
             tolerance,
         )?);
     }
