@@ -276,9 +276,25 @@ pub fn bake_texels(
         });
     }
     let k = texels.scale();
+    // The upscaled level is allocated before the bake's own memory check:
+    // refused here, from its pixels alone, when that is already too much.
+    let pixels = (level.width as u64 * k as u64).saturating_mul(level.height as u64 * k as u64);
+    let floor = super::memory::BASE.saturating_add(pixels.saturating_mul(super::memory::PER_PIXEL));
+    if let Some(limit) = settings.max_memory
+        && floor > limit
+    {
+        return Err(BakeError::TooMuchMemory {
+            estimate: super::MemoryEstimate {
+                bytes: floor,
+                pixels,
+                point_entries: 0,
+            },
+            limit,
+        });
+    }
     let fine = upscale(level, k);
     let mut baked = bake_with_progress(&fine, &scaled_settings(settings, k), progress, gathered)?;
-    let layout = Layout::new(level, &fine, &baked.geometry, texels);
+    let layout = Layout::new(level, &fine, texels);
     let texel_level = layout.texel_level(level, &fine);
     if let Some(r) = &baked.responses {
         let images = r
@@ -360,22 +376,18 @@ struct Layout {
     block: usize,
     walls: Walls,
     cells: Vec<Cell>,
-    /// Quadrature pixels that are solid with an exposed side.
-    exposed: Vec<bool>,
+    /// Painted pixels to quadrature pixels.
+    k: usize,
+    /// The painted level's size and cells.
+    pw: usize,
+    ph: usize,
+    painted: Vec<Cell>,
 }
 
 impl Layout {
-    fn new(level: &Level, fine: &Level, g: &Geometry, texels: &TexelOptions) -> Layout {
+    fn new(level: &Level, fine: &Level, texels: &TexelOptions) -> Layout {
         let block = texels.block();
         let (tw, th) = texel_size(texels, level);
-        let mut exposed = vec![false; fine.width * fine.height];
-        for e in &g.edges {
-            let (lo, hi) = e.extent();
-            for u in lo as i32..hi as i32 {
-                let p = e.solid_pixel_at(u);
-                exposed[p[1] as usize * fine.width + p[0] as usize] = true;
-            }
-        }
         Layout {
             fw: fine.width,
             fh: fine.height,
@@ -384,8 +396,49 @@ impl Layout {
             block,
             walls: texels.walls,
             cells: fine.cells.clone(),
-            exposed,
+            k: texels.scale(),
+            pw: level.width,
+            ph: level.height,
+            painted: level.cells.clone(),
         }
+    }
+
+    /// For quadrature pixel `i` of a solid painted pixel: the quadrature
+    /// pixels on the pixel's exposed sides (those whose neighbour across is
+    /// free, inside the image) in the same row or column as `i`.
+    fn face_sources(&self, i: usize) -> impl Iterator<Item = usize> + '_ {
+        let (x, y, k) = (i % self.fw, i / self.fw, self.k);
+        let (px, py) = (x / k, y / k);
+        let free = move |dx: isize, dy: isize| {
+            let (qx, qy) = (px as isize + dx, py as isize + dy);
+            qx >= 0
+                && qy >= 0
+                && (qx as usize) < self.pw
+                && (qy as usize) < self.ph
+                && self.painted[qy as usize * self.pw + qx as usize].is_free()
+        };
+        [
+            (free(-1, 0), px * k, y),
+            (free(1, 0), px * k + k - 1, y),
+            (free(0, -1), x, py * k),
+            (free(0, 1), x, py * k + k - 1),
+        ]
+        .into_iter()
+        .filter(|s| s.0)
+        .map(move |(_, sx, sy)| sy * self.fw + sx)
+    }
+
+    /// The mean of `img` over [`Layout::face_sources`]: the light of the
+    /// face(s) at this point's position along them. So every point of a
+    /// wall pixel with an exposed face carries its face's light, as the
+    /// whole pixel does at density 1. `None` inside walls.
+    fn face_value(&self, i: usize, img: &[f32]) -> Option<f64> {
+        let (mut sum, mut n) = (0f64, 0u32);
+        for j in self.face_sources(i) {
+            sum += img[j] as f64;
+            n += 1;
+        }
+        (n > 0).then(|| sum / n as f64)
     }
 
     /// The quadrature pixels of texel `(tx, ty)`, clipped to the level.
@@ -412,13 +465,15 @@ impl Layout {
                             floor += img[i] as f64;
                             nf += 1;
                         }
-                        c @ Cell::Solid(_) if self.exposed[i] => {
-                            wall += match self.walls {
-                                Walls::Lit => img[i],
-                                Walls::Glow => glow(c),
-                                Walls::Dark => 0.0,
-                            } as f64;
-                            nw += 1;
+                        c @ Cell::Solid(_) => {
+                            if let Some(v) = self.face_value(i, img) {
+                                wall += match self.walls {
+                                    Walls::Lit => v,
+                                    Walls::Glow => glow(c) as f64,
+                                    Walls::Dark => 0.0,
+                                };
+                                nw += 1;
+                            }
                         }
                         _ => {}
                     }
@@ -457,7 +512,7 @@ impl Layout {
                         }
                         c @ Cell::Solid(_) => {
                             solid = solid.or(Some(c));
-                            if self.exposed[i] {
+                            if self.face_sources(i).next().is_some() {
                                 exposed = exposed.or(Some(c));
                             }
                         }
