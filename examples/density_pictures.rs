@@ -29,7 +29,14 @@ fn main() -> anyhow::Result<()> {
             36,
             "assets/texel_density.png".to_string(),
         ),
-        [p, x, y, w, h, o] => (p.clone(), x.parse()?, y.parse()?, w.parse()?, h.parse()?, o.clone()),
+        [p, x, y, w, h, o] => (
+            p.clone(),
+            x.parse()?,
+            y.parse()?,
+            w.parse()?,
+            h.parse()?,
+            o.clone(),
+        ),
         _ => anyhow::bail!("usage: density_pictures [LEVEL.png X Y W H OUT.png]"),
     };
     let path = Path::new(&path);

@@ -41,7 +41,11 @@ fn children_cpu() -> f64 {
         .split_whitespace()
         .map(|x| x.parse().unwrap_or(0.0))
         .collect();
-    if f.len() > 14 { (f[13] + f[14]) / 100.0 } else { f64::NAN }
+    if f.len() > 14 {
+        (f[13] + f[14]) / 100.0
+    } else {
+        f64::NAN
+    }
 }
 
 fn load() -> String {
@@ -62,7 +66,12 @@ fn main() -> anyhow::Result<()> {
     while let Some(a) = it.next() {
         match a.as_str() {
             "--bin" => bin = PathBuf::from(it.next().ok_or_else(|| anyhow::anyhow!("--bin PATH"))?),
-            "--rounds" => rounds = it.next().ok_or_else(|| anyhow::anyhow!("--rounds N"))?.parse()?,
+            "--rounds" => {
+                rounds = it
+                    .next()
+                    .ok_or_else(|| anyhow::anyhow!("--rounds N"))?
+                    .parse()?
+            }
             other => anyhow::bail!("unknown argument {other}"),
         }
     }
@@ -80,7 +89,8 @@ fn main() -> anyhow::Result<()> {
     ];
     let before = load();
     // best[level][density] = (CPU s, wall s, gather s, texels, points)
-    let mut best = vec![vec![(f64::INFINITY, 0.0, 0.0, 0usize, 0usize); DENSITIES.len()]; levels.len()];
+    let mut best =
+        vec![vec![(f64::INFINITY, 0.0, 0.0, 0usize, 0usize); DENSITIES.len()]; levels.len()];
     for _ in 0..rounds {
         for (li, (name, png)) in levels.iter().enumerate() {
             for (di, (flag, _, _)) in DENSITIES.iter().enumerate() {
@@ -88,7 +98,14 @@ fn main() -> anyhow::Result<()> {
                 let t = Instant::now();
                 let cpu0 = children_cpu();
                 let st = Command::new(&bin)
-                    .args(["bake", "--force", "--quiet", "--texels-per-pixel", flag, "-o"])
+                    .args([
+                        "bake",
+                        "--force",
+                        "--quiet",
+                        "--texels-per-pixel",
+                        flag,
+                        "-o",
+                    ])
                     .arg(&out)
                     .arg(png)
                     .status()?;
@@ -100,7 +117,8 @@ fn main() -> anyhow::Result<()> {
                     out.join(format!("{stem}.report.json")),
                 )?)?;
                 let size = &report["size"];
-                let texels = size[0].as_u64().unwrap_or(0) as usize * size[1].as_u64().unwrap_or(0) as usize;
+                let texels =
+                    size[0].as_u64().unwrap_or(0) as usize * size[1].as_u64().unwrap_or(0) as usize;
                 let points = report["counts"]["floor_pixels"].as_u64().unwrap_or(0) as usize;
                 let gather = report["timings"]["gather"].as_f64().unwrap_or(0.0);
                 if cpu < best[li][di].0 {
@@ -112,7 +130,9 @@ fn main() -> anyhow::Result<()> {
     }
     let after = load();
     println!("load average before {before}, after {after}; {rounds} round(s), fastest shown\n");
-    println!("| level | texels per pixel | texels | floor points | CPU s | wall s | gather s | CPU s / M points | CPU / density 1 | points / density 1 |");
+    println!(
+        "| level | texels per pixel | texels | floor points | CPU s | wall s | gather s | CPU s / M points | CPU / density 1 | points / density 1 |"
+    );
     println!("|---|---|---|---|---|---|---|---|---|---|");
     for (li, (name, _)) in levels.iter().enumerate() {
         let (one, one_points) = (best[li][2].0, best[li][2].4);

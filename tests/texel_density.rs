@@ -56,7 +56,9 @@ fn density_parses_whole_numbers_and_their_inverses() {
     ] {
         assert_eq!(Density::parse(s), Ok(d), "{s}");
     }
-    for s in ["0", "-1", "0.3", "1.5", "32", "1/32", "abc", "1/0", "", "nan", "inf"] {
+    for s in [
+        "0", "-1", "0.3", "1.5", "32", "1/32", "abc", "1/0", "", "nan", "inf",
+    ] {
         let e = Density::parse(s).unwrap_err().to_string();
         assert!(
             e.contains("from 1 to 16") && e.contains(&format!("not {s}")),
@@ -296,10 +298,7 @@ fn lone_emitter_texels_are_the_area_average_within_the_bound() {
         };
         let (worst, n) = check_area_average(&t, texel, s, e, &block, &light);
         assert!(n >= 40, "{d:?}: {n} texels");
-        assert!(
-            worst <= 1.0,
-            "{d:?} s={s}: error {worst:.3} of the bound"
-        );
+        assert!(worst <= 1.0, "{d:?} s={s}: error {worst:.3} of the bound");
     }
 }
 
@@ -482,7 +481,11 @@ fn walls_dark_glow_lit_write_what_they_say() {
     }
     assert!(checked > 10, "{checked}");
     // At density 1 the lit walls are the plain bake's solid pixels.
-    let lit1 = at(&lvl, &settings, &texels(Density::Up(1), Some(1), Walls::Lit));
+    let lit1 = at(
+        &lvl,
+        &settings,
+        &texels(Density::Up(1), Some(1), Walls::Lit),
+    );
     assert_eq!(lit1.baked.lightmap.rgb, plain.lightmap.rgb);
     let glow1 = at(&lvl, &settings, &texels(Density::Up(1), None, Walls::Glow));
     for (i, c) in lvl.cells.iter().enumerate() {
@@ -508,7 +511,11 @@ fn responses_add_up_to_the_lightmap_at_every_density() {
     ];
     let lvl = ascii(
         &rows,
-        &[('#', wall(0.5)), ('L', light(2.0, 0.2)), ('M', light(1.0, 0.2))],
+        &[
+            ('#', wall(0.5)),
+            ('L', light(2.0, 0.2)),
+            ('M', light(1.0, 0.2)),
+        ],
     );
     let mut settings = Settings::new(Quality::Normal);
     settings.responses = true;
@@ -614,7 +621,14 @@ fn cli_density_bake_relight_and_padding() {
     assert_exit(&o, EXIT_OK);
     let map = image::open(out.join("room.lightmap.png")).unwrap();
     assert_eq!(map.width(), painted.width().div_ceil(2));
-    let o = flatbake(&["bake", s(&level), "-o", s(&out), "--texels-per-pixel", "3/4"]);
+    let o = flatbake(&[
+        "bake",
+        s(&level),
+        "-o",
+        s(&out),
+        "--texels-per-pixel",
+        "3/4",
+    ]);
     assert_exit(&o, EXIT_USAGE);
     assert_says(&o, &["texels per pixel", "1/16", "not 3/4"]);
 }

@@ -116,7 +116,9 @@ impl Density {
 }
 
 /// What solid texels of the lightmap carry.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
+)]
 pub enum Walls {
     /// Every solid texel 0.
     Dark,
