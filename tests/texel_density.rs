@@ -82,7 +82,7 @@ fn closed_room_is_e_over_one_minus_r_at_every_texel_and_density() {
         let (tl, map) = (&t.level, &t.baked.lightmap);
         assert_eq!((map.width, map.height), (tl.width, tl.height));
         let n = d.value();
-        assert_eq!(map.width, ((13.0 * n) as f64).ceil() as usize, "{d:?}");
+        assert_eq!(map.width, (13.0 * n).ceil() as usize, "{d:?}");
         for b in &t.baked.radiosity[0] {
             assert!((b / want - 1.0).abs() < 1e-6, "{d:?}: patch {b}");
         }
@@ -192,9 +192,8 @@ fn dist_to_square(v: [f64; 2], x: f64, y: f64, h: f64) -> f64 {
 /// (sqrt 2 + ln(1 + sqrt 2)) / 6.
 const MEAN_DISTANCE: f64 = 0.382_597_858_232_106;
 
-/// The exact area average over texel square `(x, y, h)` of `light`, by
-/// a fine midpoint grid of `n x n`, and the bound of that grid's own error
-/// (Lipschitz constant `lip` over the texel).
+/// The area average over texel square `(x, y, h)` of `light`, by a fine
+/// midpoint grid of `n x n` (its own error is bounded by the callers).
 fn fine_average(light: &dyn Fn([f64; 2]) -> f64, x: f64, y: f64, h: f64, n: usize) -> f64 {
     let mut sum = 0.0;
     for j in 0..n {
