@@ -154,6 +154,15 @@ pub struct OutputArgs {
     /// Pad the lightmaps by N texels around the floor (8 covers bilinear and 3 mip levels), with coverage in alpha (0: off).
     #[arg(long, value_name = "N", default_value_t = 0, value_parser = crate::flags::parse_padding, allow_negative_numbers = true)]
     pub padding: u32,
+    /// Lightmap texels per painted pixel along each axis: 1/16 to 16 (such as 1/4, 0.5, 2, 4); each texel is the light averaged over its area.
+    #[arg(long, value_name = "N", default_value = "1", value_parser = crate::flags::parse_texels_per_pixel, allow_negative_numbers = true)]
+    pub texels_per_pixel: flatbake_core::bake::Density,
+    /// Quadrature points per texel side for the area average (default 1 up to density 1, 2 above).
+    #[arg(long, value_name = "S", value_parser = crate::flags::parse_texel_samples, allow_negative_numbers = true)]
+    pub texel_samples: Option<u32>,
+    /// What solid texels carry: lit (each exposed wall face its radiosity, the default), glow (emitters only), dark (0).
+    #[arg(long, value_enum, value_name = "MODE", default_value_t = WallsArg::Lit)]
+    pub walls: WallsArg,
     /// Also write one lightmap per light group (NAME.layer-GROUP.exr/.png, NAME.layers.json).
     #[arg(long)]
     pub layers: bool,
@@ -288,6 +297,27 @@ fn parse_memory(s: &str) -> Result<MemoryLimit, String> {
 pub enum KernelArg {
     Flatland,
     Paper,
+}
+
+/// `--walls`: the library's [`Walls`](flatbake_core::bake::Walls), spelled for clap.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WallsArg {
+    /// Every exposed wall face texel carries its solved radiosity (emission plus reflected light).
+    Lit,
+    /// Emitter faces carry their emission; other walls 0.
+    Glow,
+    /// Every solid texel 0.
+    Dark,
+}
+
+impl From<WallsArg> for flatbake_core::bake::Walls {
+    fn from(w: WallsArg) -> Self {
+        match w {
+            WallsArg::Lit => flatbake_core::bake::Walls::Lit,
+            WallsArg::Glow => flatbake_core::bake::Walls::Glow,
+            WallsArg::Dark => flatbake_core::bake::Walls::Dark,
+        }
+    }
 }
 
 /// `--engine`: the library's [`Engine`] presets, spelled for clap.
@@ -529,10 +559,20 @@ pub fn batch_options(a: &BakeArgs) -> Result<BatchOptions, String> {
         shard: a.shard,
         occluders: o.occluders.then_some(o.occluder_tolerance),
         directional: o.directional,
+        texels: flatbake_core::bake::TexelOptions {
+            density: o.texels_per_pixel,
+            samples: o.texel_samples,
+            walls: o.walls.into(),
+        },
     };
     if opts.directional && (opts.kernel != Kernel::Flatland || opts.gather != GatherMethod::Fast) {
         return Err(
             "--directional needs the flatland kernel and the fast gather: leave out --kernel paper and --gather naive".into(),
+        );
+    }
+    if opts.directional && !opts.texels.is_one_point() {
+        return Err(
+            "--directional is baked at one texel per pixel only: leave out --texels-per-pixel and --texel-samples".into(),
         );
     }
     Ok(match o.engine {

@@ -127,6 +127,23 @@ pub fn parse_padding(s: &str) -> Result<u32, String> {
     }
 }
 
+/// `--texels-per-pixel N`: a whole number or the inverse of one
+/// ([`Density::parse`](flatbake_core::bake::Density::parse)).
+pub fn parse_texels_per_pixel(s: &str) -> Result<flatbake_core::bake::Density, String> {
+    flatbake_core::bake::Density::parse(s).map_err(|e| e.to_string())
+}
+
+/// `--texel-samples S`: 1 to [`MAX_SAMPLES`](flatbake_core::bake::texels::MAX_SAMPLES).
+pub fn parse_texel_samples(s: &str) -> Result<u32, String> {
+    let max = flatbake_core::bake::texels::MAX_SAMPLES;
+    match s.trim().parse::<i64>() {
+        Ok(n) if (1..=max as i64).contains(&n) => Ok(n as u32),
+        _ => Err(format!(
+            "the texel samples are a whole number of quadrature points per texel side from 1 to {max}, not {s}"
+        )),
+    }
+}
+
 /// `--shard K/N`.
 pub fn parse_shard(s: &str) -> Result<Shard, String> {
     s.parse::<Shard>().map_err(|e| e.to_string())

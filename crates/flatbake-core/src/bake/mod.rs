@@ -34,6 +34,7 @@ pub mod radiosity;
 pub mod report;
 pub mod responses;
 pub mod scene;
+pub mod texels;
 
 use std::time::Instant;
 
@@ -47,6 +48,7 @@ pub use radiosity::{Solved, energy_balance};
 pub use report::{Counts, Energy, Problem, Report, Skip, Timings};
 pub use responses::Responses;
 pub use scene::Scene;
+pub use texels::{Density, TexelBake, TexelOptions, Walls, bake_texels};
 
 use crate::gather::Kernel;
 use crate::geometry::Geometry;

@@ -92,6 +92,9 @@ pub struct BatchOptions {
     /// `NAME.direction.png`, and `NAME.lit-normals.png` for a level with
     /// `NAME.normals.png` beside it; [`output::directional`]). Default off.
     pub directional: bool,
+    /// Texel density, quadrature and wall faces of the lightmap
+    /// ([`bake::texels`]). Default: one texel per pixel, lit walls.
+    pub texels: bake::TexelOptions,
 }
 
 impl BatchOptions {
@@ -121,6 +124,7 @@ impl BatchOptions {
         if self.directional {
             added.push_str(" directional");
         }
+        added.push_str(&self.texels.fingerprint());
         format!(
             "{:?}{:?}{added}",
             (
@@ -232,6 +236,7 @@ impl Default for BatchOptions {
             shard: None,
             occluders: None,
             directional: false,
+            texels: bake::TexelOptions::default(),
         }
     }
 }
@@ -585,9 +590,10 @@ pub fn bake_one(path: &Path, opts: &BatchOptions, observer: &dyn Observer) -> Re
     let inputs = stamp::inputs(&recipe)?;
     let load = t.elapsed().as_secs_f64();
 
-    let baked = bake::bake_with_progress(
+    let texel_bake = bake::bake_texels(
         &level,
         &opts.settings(&palette),
+        &opts.texels,
         &|stage| observer.stage(path, stage),
         &|done| observer.fraction(path, "gather", done),
     )
@@ -595,6 +601,12 @@ pub fn bake_one(path: &Path, opts: &BatchOptions, observer: &dyn Observer) -> Re
         path: path.to_path_buf(),
         source,
     })?;
+    // The outputs encode the level at texel resolution; the occluders
+    // follow the walls as painted.
+    let occluder_geometry = opts
+        .occluders
+        .map(|_| texel_bake.painted_geometry(&level).into_owned());
+    let (baked, level) = (texel_bake.baked, texel_bake.level);
     let mut report = baked.report;
     report.timings.load = load;
 
@@ -654,10 +666,10 @@ pub fn bake_one(path: &Path, opts: &BatchOptions, observer: &dyn Observer) -> Re
             &out_opts,
         )?);
     }
-    if let Some(tolerance) = opts.occluders {
+    if let (Some(tolerance), Some(g)) = (opts.occluders, &occluder_geometry) {
         extra.extend(output::occluders::encode_occluders(
             &level.name,
-            &baked.geometry,
+            g,
             tolerance,
         )?);
     }
