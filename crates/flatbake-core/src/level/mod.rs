@@ -248,6 +248,17 @@ impl Level {
     }
 }
 
+/// The files besides its own that the level at `path` is read from: a
+/// Tiled map's external tilesets (`.tsx`), the level file (`.ldtkl`) of a
+/// level of an LDtk project that keeps its levels in separate files. Watch
+/// mode bakes the level again when one of them changes.
+pub fn dependencies(path: &Path) -> Vec<PathBuf> {
+    if tiled_map::is_tiled_map(path) {
+        return tiled_map::tiled_dependencies(path);
+    }
+    ldtk::level_file(path).into_iter().collect()
+}
+
 /// Loads a level image and classifies its pixels with `palette`.
 ///
 /// The level is named after the file stem (`cave.png` is `cave`).
