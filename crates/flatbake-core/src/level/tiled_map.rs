@@ -7,9 +7,12 @@
 //! 4), `albedo` (floors, default 0.5) and `group` (light group for layers).
 //! Numbers are one value or three (`"0.7 0.1 0.1"` or `"[0.7, 0.1, 0.1]"`),
 //! linear, with the palette's ranges. Empty tiles and tiles without a
-//! `flatbake` property are floor. Objects of class `light` (point, rectangle
-//! or ellipse; rotation ignored) become emitter cells of that shape with the
-//! same properties; a point is a square of one tile. One map tile is
+//! `flatbake` property are floor. Objects of class `light` (point, rectangle,
+//! ellipse or tile object; rotation ignored) become emitter cells of that
+//! shape with the same properties, and so do objects with a `flatbake`
+//! property of that material; a point is a square of one tile, a tile
+//! object (whose y is its bottom edge) has its tile's class and properties
+//! unless it sets its own. Layers inside group layers count too. One map tile is
 //! `tile width x tile height` level pixels, or `flatbake_tile_pixels` square
 //! pixels when the map sets that property. Tileset images are never read.
 
@@ -148,7 +151,9 @@ pub fn load_tiled(path: &Path, limits: LoadLimits) -> Result<Level, LevelError> 
     }
     let mut canvas = Canvas::new(w, h);
     let mut found = false;
-    for layer in map.layers() {
+    let mut layers = Vec::new();
+    flatten(map.layers(), &mut layers);
+    for &layer in &layers {
         if layer.name != layer_name {
             continue;
         }
@@ -194,16 +199,29 @@ pub fn load_tiled(path: &Path, limits: LoadLimits) -> Result<Level, LevelError> 
         tpx_w as f64 / map.tile_width.max(1) as f64,
         tpx_h as f64 / map.tile_height.max(1) as f64,
     );
-    for layer in map.layers() {
+    for &layer in &layers {
         let LayerType::Objects(ol) = layer.layer_type() else {
             continue;
         };
         for obj in ol.objects() {
-            if !obj.user_type.eq_ignore_ascii_case("light") {
+            // A tile object has its tile's class and properties, which
+            // its own override.
+            let tile = obj.get_tile();
+            let tile = tile.as_ref().and_then(|t| t.get_tile());
+            let light = obj.user_type.eq_ignore_ascii_case("light")
+                || tile
+                    .as_ref()
+                    .is_some_and(|t| t.user_type.eq_ignore_ascii_case("light"));
+            let mut props = tile
+                .as_ref()
+                .map(|t| t.properties.clone())
+                .unwrap_or_default();
+            props.extend(obj.properties.clone());
+            if !light && !props.contains_key("flatbake") {
                 continue;
             }
             let place = format!("layer {:?}, object {} {:?}", layer.name, obj.id(), obj.name);
-            let kind = kind_of(&obj.properties, true).map_err(|p| err(path, place.clone(), p))?;
+            let kind = kind_of(&props, light).map_err(|p| err(path, place.clone(), p))?;
             let (x0, y0) = (obj.x as f64 * sx, obj.y as f64 * sy);
             let (ow, oh, ellipse) = match obj.shape {
                 ObjectShape::Rect { width, height } => {
@@ -221,9 +239,12 @@ pub fn load_tiled(path: &Path, limits: LoadLimits) -> Result<Level, LevelError> 
                     ));
                 }
             };
-            // A point is centred on its position; rectangles and ellipses start at it.
+            // A point is centred on its position; rectangles and ellipses
+            // start at it; a tile object stands on it (its y is the bottom).
             let (x0, y0) = if matches!(obj.shape, ObjectShape::Point(..)) {
                 (x0 - ow / 2.0, y0 - oh / 2.0)
+            } else if obj.get_tile().is_some() {
+                (x0, y0 - oh)
             } else {
                 (x0, y0)
             };
@@ -231,6 +252,17 @@ pub fn load_tiled(path: &Path, limits: LoadLimits) -> Result<Level, LevelError> 
         }
     }
     canvas.into_level(name).map_err(|p| err(path, "map", p))
+}
+
+/// Appends `layers` and, after each group layer, the layers inside it, in
+/// the map's order.
+fn flatten<'m>(layers: impl Iterator<Item = tiled::Layer<'m>>, out: &mut Vec<tiled::Layer<'m>>) {
+    for layer in layers {
+        out.push(layer);
+        if let LayerType::Group(g) = layer.layer_type() {
+            flatten(g.layers(), out);
+        }
+    }
 }
 
 /// True for a path ending in `.tmx` (any case).
