@@ -239,7 +239,7 @@ fn the_flatbake_field_maps_identifiers_and_value_numbers() {
             ("flatbake_layer", "IntGrid_without_rules"),
             (
                 "flatbake",
-                "first = wall reflectance=0.25 # a comment\nsecond = floor albedo=0.2,0.3,0.4; 3 = emitter emission=1,2,3",
+                "# walls\nfirst = wall reflectance=0.25 # a comment\nsecond = floor albedo=0.2,0.3,0.4; 3 = emitter emission=2 colour=#ff0000",
             ),
         ],
         |_| {},
@@ -277,7 +277,7 @@ fn the_flatbake_field_maps_identifiers_and_value_numbers() {
         .iter()
         .find(|m| m.kind == MaterialKind::Emitter)
         .unwrap();
-    assert_eq!(lamp.emission, [1.0, 2.0, 3.0]);
+    assert_eq!(lamp.emission, [2.0, 0.0, 0.0], "emission 2 tinted red");
 }
 
 #[test]

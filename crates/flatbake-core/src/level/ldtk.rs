@@ -370,7 +370,13 @@ struct Entry {
 fn parse_table(text: &str) -> Result<HashMap<String, Entry>, String> {
     let mut table = HashMap::new();
     for raw in text.split(['\n', ';']) {
-        let line = raw.split('#').next().unwrap_or("").trim();
+        // A comment starts with `#` at the start or after a space (a
+        // colour `=#rrggbb` is not one).
+        let cut = raw
+            .char_indices()
+            .find(|&(i, c)| c == '#' && raw[..i].chars().last().is_none_or(char::is_whitespace))
+            .map_or(raw.len(), |(i, _)| i);
+        let line = raw[..cut].trim();
         if line.is_empty() {
             continue;
         }
