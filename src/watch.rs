@@ -1,5 +1,6 @@
 //! Watch mode (`flatbake watch DIR -o OUT`): bake every level in a folder,
-//! then bake a level again whenever its image or its palette is saved.
+//! then bake a level again whenever its image (map, project), its palette
+//! or a file it reads (a Tiled tileset, an LDtk level file) is saved.
 //!
 //! Editors save in several steps (temporary file, rename, metadata), so file
 //! events are debounced with `notify-debouncer-full` and a burst becomes one
@@ -18,7 +19,9 @@ use std::time::Duration;
 use notify::{EventKind, RecursiveMode};
 use notify_debouncer_full::{DebounceEventResult, new_debouncer};
 
+use flatbake_core::Palette;
 use flatbake_core::batch::{self, BatchOptions, LevelOutcome, Silent};
+use flatbake_core::level;
 
 /// The local time of day, `HH:MM:SS`, that every line watch prints starts
 /// with (UTC where the local time zone cannot be read).
@@ -77,9 +80,11 @@ pub enum WatchEvent {
     WatchError(String),
 }
 
-/// The level images a file event in the watched folder concerns: the image
-/// itself, the levels of `NAME.palette.toml`, or every level for the
-/// folder's `palette.toml`.
+/// The levels a file event in the watched folder concerns: the level file
+/// itself (an LDtk project stands for its levels), the levels of
+/// `NAME.palette.toml`, every level for the folder's `palette.toml`, or the
+/// levels that read the file (tilesets, LDtk level files, which may lie in
+/// other folders).
 pub fn affected_levels(dir: &Path, changed: &Path) -> Vec<PathBuf> {
     let Some(name) = changed.file_name().and_then(|n| n.to_str()) else {
         return Vec::new();
@@ -87,24 +92,61 @@ pub fn affected_levels(dir: &Path, changed: &Path) -> Vec<PathBuf> {
     let levels = || -> Vec<PathBuf> {
         batch::collect_levels(&[dir.to_path_buf()])
             .into_iter()
-            .filter(|p| p.is_file())
+            .filter(|p| is_level(p))
             .collect()
     };
-    if name == "palette.toml" {
+    let in_dir = changed.parent().is_none_or(|p| same_file(p, dir));
+    if in_dir && name == "palette.toml" {
         return levels();
     }
-    if let Some(stem) = name.strip_suffix(".palette.toml") {
+    if in_dir && name.ends_with(".palette.toml") {
         return levels()
             .into_iter()
-            .filter(|p| p.file_stem().is_some_and(|s| s == stem))
+            .filter(|p| Palette::candidate_paths(p)[0].file_name() == Some(name.as_ref()))
             .collect();
     }
     let here = dir.join(name);
-    if here.is_file() && batch::is_level_file(&here) {
-        vec![here]
-    } else {
-        Vec::new()
+    if in_dir && here.is_file() && batch::is_level_file(&here) {
+        return vec![here];
     }
+    levels()
+        .into_iter()
+        .filter(|l| level::dependencies(l).iter().any(|d| same_file(d, changed)))
+        .collect()
+}
+
+/// A level file, or a level of an LDtk project (not a folder, not a
+/// broken link).
+fn is_level(p: &Path) -> bool {
+    p.is_file() || level::ldtk::project_level(p).is_some()
+}
+
+/// True when two paths name the same file (compared by their folders'
+/// canonical paths, so that a file that was just removed still compares).
+fn same_file(a: &Path, b: &Path) -> bool {
+    let canon = |p: &Path| -> PathBuf {
+        if let Ok(c) = p.canonicalize() {
+            return c;
+        }
+        match (p.parent(), p.file_name()) {
+            (Some(d), Some(n)) => d
+                .canonicalize()
+                .map_or_else(|_| p.to_path_buf(), |d| d.join(n)),
+            _ => p.to_path_buf(),
+        }
+    };
+    canon(a) == canon(b)
+}
+
+/// The folders other than `dir` that hold files the levels in `dir` read.
+fn dependency_folders(dir: &Path) -> BTreeSet<PathBuf> {
+    let home = dir.canonicalize().unwrap_or_else(|_| dir.to_path_buf());
+    batch::collect_levels(&[dir.to_path_buf()])
+        .iter()
+        .flat_map(|l| level::dependencies(l))
+        .filter_map(|d| d.parent()?.canonicalize().ok())
+        .filter(|d| *d != home)
+        .collect()
 }
 
 /// Bakes every level in `opts.dir`, then watches until `stop` is set,
@@ -133,9 +175,26 @@ pub fn run(
             on(WatchEvent::Level(outcome));
         }
     };
+    // Files the levels read in other folders (tilesets, LDtk level files)
+    // are watched too, and so are folders that new files bring in.
+    let mut watched = BTreeSet::new();
+    let mut watch_more = |debouncer: &mut notify_debouncer_full::Debouncer<_, _>,
+                          on: &mut dyn FnMut(WatchEvent)| {
+        for d in dependency_folders(&opts.dir) {
+            if watched.insert(d.clone())
+                && let Err(e) = debouncer.watch(&d, RecursiveMode::NonRecursive)
+            {
+                on(WatchEvent::WatchError(format!(
+                    "cannot watch {}: {e}",
+                    d.display()
+                )));
+            }
+        }
+    };
+    watch_more(&mut debouncer, on);
     let initial: Vec<PathBuf> = batch::collect_levels(std::slice::from_ref(&opts.dir))
         .into_iter()
-        .filter(|p| p.is_file())
+        .filter(|p| is_level(p))
         .collect();
     bake(&initial, on);
     on(WatchEvent::Watching {
@@ -167,6 +226,9 @@ pub fn run(
         }
         let todo: Vec<PathBuf> = todo.into_iter().collect();
         bake(&todo, on);
+        if !todo.is_empty() {
+            watch_more(&mut debouncer, on);
+        }
     }
     debouncer.stop();
     Ok(())
@@ -297,5 +359,47 @@ mod tests {
         assert_eq!(affected_levels(d, &d.join("palette.toml")), vec![a, b]);
         assert!(affected_levels(d, &d.join("a.lightmap.png")).is_empty());
         assert!(affected_levels(d, &d.join(".flatbake-x.tmp")).is_empty());
+    }
+
+    /// Tilesets and LDtk level files, which the folder's level files read,
+    /// map to the levels that read them; a project to itself (the batch
+    /// bakes its levels), a project's palette to its levels.
+    #[test]
+    fn watch_maps_tilesets_and_ldtk_level_files_to_their_levels() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let d = dir.path();
+        let fixtures = Path::new("tests/fixtures");
+        for f in ["room.tmx", "room.tsx"] {
+            std::fs::copy(fixtures.join("tiled").join(f), d.join(f)).expect("copy");
+        }
+        std::fs::create_dir(d.join("SeparateLevelFiles")).expect("mkdir");
+        for f in [
+            "SeparateLevelFiles.ldtk",
+            "SeparateLevelFiles/World_Level_0.ldtkl",
+            "SeparateLevelFiles/World_Level_1.ldtkl",
+            "SeparateLevelFiles/World_Level_2.ldtkl",
+        ] {
+            std::fs::copy(fixtures.join("ldtk").join(f), d.join(f)).expect("copy");
+        }
+        let project = d.join("SeparateLevelFiles.ldtk");
+        assert_eq!(
+            affected_levels(d, &d.join("room.tsx")),
+            vec![d.join("room.tmx")]
+        );
+        assert_eq!(
+            affected_levels(d, &d.join("SeparateLevelFiles/World_Level_1.ldtkl")),
+            vec![project.join("World_Level_1")]
+        );
+        assert_eq!(affected_levels(d, &project), vec![project.clone()]);
+        assert_eq!(
+            affected_levels(d, &d.join("SeparateLevelFiles.palette.toml")),
+            (0..3)
+                .map(|i| project.join(format!("World_Level_{i}")))
+                .collect::<Vec<_>>()
+        );
+        assert_eq!(
+            dependency_folders(d),
+            BTreeSet::from([d.join("SeparateLevelFiles").canonicalize().unwrap()])
+        );
     }
 }

@@ -1,4 +1,5 @@
-//! Reference images: every sample level in `levels/` is baked through the
+//! Reference images: every sample level in `levels/` (images, the Tiled
+//! map, the levels of the LDtk project) is baked through the
 //! real command line (`--quality normal --depth 16`) and its lightmap is
 //! compared with `tests/reference/NAME.lightmap.png`, channel by channel,
 //! with an explicit tolerance.
@@ -59,18 +60,17 @@ fn sample_levels_match_their_reference_lightmaps() {
     let bless = std::env::var_os("FLATBAKE_BLESS").is_some();
     let refs = root().join("tests/reference");
     let diffs = root().join("target/reference-diff");
-    let mut levels: Vec<String> = std::fs::read_dir(root().join("levels"))
-        .expect("levels/ exists")
-        .filter_map(Result::ok)
-        .filter_map(|e| {
-            e.file_name()
-                .to_str()
-                .and_then(|n| n.strip_suffix(".png"))
-                .map(str::to_owned)
-        })
+    // Every level the folder holds: images, Tiled maps, each level of an
+    // LDtk project.
+    let mut levels: Vec<String> = flatbake_core::batch::collect_levels(&[root().join("levels")])
+        .iter()
+        .map(|p| flatbake_core::output::names::level_name(p))
         .collect();
     levels.sort();
-    assert!(levels.len() >= 6, "the sample set has at least 6 levels");
+    assert!(levels.len() >= 11, "the sample set has at least 11 levels");
+    for editor in ["tiled_hall", "topdown.World_Level_0"] {
+        assert!(levels.iter().any(|l| l == editor), "{editor} is a sample");
+    }
 
     let mut failures = Vec::new();
     for name in &levels {

@@ -342,13 +342,28 @@ impl Observer for Silent {}
 /// Image extensions that are treated as levels inside folders.
 const LEVEL_EXTENSIONS: &[&str] = &[
     "png", "bmp", "gif", "tga", "tif", "tiff", "webp", "qoi", "jpg", "jpeg", "pnm", "ppm", "tmx",
+    "ldtk",
 ];
 
 /// Expands files and folders into the list of level files, in a stable
 /// order. Folders contribute their image files (not recursively), except
-/// flatbake's own outputs. A path that does not exist is kept so that the
+/// flatbake's own outputs; an LDtk project contributes each of its levels
+/// (`PROJECT.ldtk/LEVEL`), or itself when it cannot be read, so that its
+/// problem is reported. A path that does not exist is kept so that the
 /// batch reports it as a failed level.
 pub fn collect_levels(paths: &[PathBuf]) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    for p in collect_files(paths) {
+        match level::ldtk::is_ldtk_project(&p).then(|| level::ldtk::project_levels(&p)) {
+            Some(Ok(levels)) if !levels.is_empty() => out.extend(levels),
+            _ => out.push(p),
+        }
+    }
+    out
+}
+
+/// [`collect_levels`] before LDtk projects are expanded into their levels.
+fn collect_files(paths: &[PathBuf]) -> Vec<PathBuf> {
     let mut out = Vec::new();
     for p in paths {
         if p.is_dir() {

@@ -62,7 +62,13 @@ pub fn inputs(recipe: &Recipe) -> Result<Inputs> {
             source,
         })
     };
-    let image_hash = blake3::hash(&read(recipe.image)?).to_hex().to_string();
+    // A level of an LDtk project is what its project says about it, not
+    // the whole project file: editing one level re-bakes only that one.
+    let image = match crate::level::ldtk::project_level(recipe.image) {
+        Some(_) => crate::level::ldtk::level_inputs(recipe.image)?,
+        None => read(recipe.image)?,
+    };
+    let image_hash = blake3::hash(&image).to_hex().to_string();
     let mut h = blake3::Hasher::new();
     h.update(b"flatbake ");
     h.update(env!("CARGO_PKG_VERSION").as_bytes());

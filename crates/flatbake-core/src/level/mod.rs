@@ -13,6 +13,8 @@
 
 mod classify;
 mod decode;
+pub mod ldtk;
+mod map_grid;
 pub mod material;
 pub mod palette;
 pub mod tiled_map;
@@ -103,6 +105,9 @@ pub enum LevelError {
     /// A Tiled map could not be read as a level.
     #[error(transparent)]
     Tiled(#[from] tiled_map::TiledError),
+    /// An LDtk project or one of its levels could not be read as a level.
+    #[error(transparent)]
+    Ldtk(#[from] ldtk::LdtkError),
 }
 
 /// What is wrong with a level image, in words a level designer understands.
@@ -243,13 +248,29 @@ impl Level {
     }
 }
 
+/// The files besides its own that the level at `path` is read from: a
+/// Tiled map's external tilesets (`.tsx`), the level file (`.ldtkl`) of a
+/// level of an LDtk project that keeps its levels in separate files. Watch
+/// mode bakes the level again when one of them changes.
+pub fn dependencies(path: &Path) -> Vec<PathBuf> {
+    if tiled_map::is_tiled_map(path) {
+        return tiled_map::tiled_dependencies(path);
+    }
+    ldtk::level_file(path).into_iter().collect()
+}
+
 /// Loads a level image and classifies its pixels with `palette`.
 ///
 /// The level is named after the file stem (`cave.png` is `cave`).
-/// A Tiled map (`.tmx`) is read by [`tiled_map::load_tiled`] instead (no palette).
+/// A Tiled map (`.tmx`) is read by [`tiled_map::load_tiled`] instead, and
+/// a level of an LDtk project (`PROJECT.ldtk/LEVEL`) by [`ldtk::load_ldtk`]
+/// (no palette).
 pub fn load_level(path: &Path, palette: &Palette, limits: LoadLimits) -> Result<Level, LevelError> {
     if tiled_map::is_tiled_map(path) {
         return tiled_map::load_tiled(path, limits);
+    }
+    if ldtk::is_ldtk_project(path) || ldtk::project_level(path).is_some() {
+        return ldtk::load_ldtk(path, limits);
     }
     let img = read_image(path, limits)?;
     let name = path

@@ -7,20 +7,22 @@
 //! 4), `albedo` (floors, default 0.5) and `group` (light group for layers).
 //! Numbers are one value or three (`"0.7 0.1 0.1"` or `"[0.7, 0.1, 0.1]"`),
 //! linear, with the palette's ranges. Empty tiles and tiles without a
-//! `flatbake` property are floor. Objects of class `light` (point, rectangle
-//! or ellipse; rotation ignored) become emitter cells of that shape with the
-//! same properties; a point is a square of one tile. One map tile is
+//! `flatbake` property are floor. Objects of class `light` (point, rectangle,
+//! ellipse or tile object; rotation ignored) become emitter cells of that
+//! shape with the same properties, and so do objects with a `flatbake`
+//! property of that material; a point is a square of one tile, a tile
+//! object (whose y is its bottom edge) has its tile's class and properties
+//! unless it sets its own. Layers inside group layers count too. One map tile is
 //! `tile width x tile height` level pixels, or `flatbake_tile_pixels` square
 //! pixels when the map sets that property. Tileset images are never read.
 
-use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use tiled::{LayerType, ObjectShape, PropertyValue, TileLayer};
 
-use crate::level::material::{Material, MaterialKind, Rgb, linear_to_srgb};
-use crate::level::palette::MAX_EMISSION;
-use crate::level::{Cell, Level, LevelError, LoadLimits};
+use crate::level::map_grid::{Canvas, Kind, Spec, parse_rgb};
+use crate::level::material::Rgb;
+use crate::level::{Level, LevelError, LoadLimits};
 
 /// A Tiled map problem, located in the map.
 #[derive(Debug, thiserror::Error)]
@@ -34,13 +36,6 @@ pub struct TiledError {
     pub problem: String,
 }
 
-/// What one map tile or light object is.
-#[derive(Clone, Debug, PartialEq)]
-enum Kind {
-    Floor(Rgb),
-    Solid(Material),
-}
-
 fn err(map: &Path, place: impl Into<String>, problem: impl Into<String>) -> LevelError {
     LevelError::Tiled(TiledError {
         map: map.to_path_buf(),
@@ -50,85 +45,47 @@ fn err(map: &Path, place: impl Into<String>, problem: impl Into<String>) -> Leve
 }
 
 fn rgb_value(v: &PropertyValue) -> Result<Rgb, String> {
-    let list: Vec<f64> = match v {
-        PropertyValue::FloatValue(f) => vec![*f as f64],
-        PropertyValue::IntValue(i) => vec![*i as f64],
-        PropertyValue::StringValue(s) => s
-            .trim()
-            .trim_start_matches('[')
-            .trim_end_matches(']')
-            .split([',', ' '])
-            .filter(|p| !p.is_empty())
-            .map(|p| {
-                p.parse::<f64>()
-                    .map_err(|_| format!("{p:?} is not a number"))
-            })
-            .collect::<Result<_, _>>()?,
-        other => return Err(format!("{other:?} is not a number or three numbers")),
-    };
-    match list[..] {
-        [a] => Ok([a; 3]),
-        [a, b, c] => Ok([a, b, c]),
-        _ => Err(format!("{} numbers given, expected 1 or 3", list.len())),
+    match v {
+        PropertyValue::FloatValue(f) => Ok([*f as f64; 3]),
+        PropertyValue::IntValue(i) => Ok([*i as f64; 3]),
+        PropertyValue::StringValue(s) => parse_rgb(s),
+        other => Err(format!("{other:?} is not a number or three numbers")),
     }
 }
 
 /// Reads the flatbake properties; `None` when the tile has no `flatbake` property.
 fn kind_of(props: &tiled::Properties, default_solid: bool) -> Result<Option<Kind>, String> {
     let kind = match props.get("flatbake") {
-        Some(PropertyValue::StringValue(s)) => s.as_str(),
+        Some(PropertyValue::StringValue(s)) => s.clone(),
         Some(other) => return Err(format!("property flatbake is {other:?}, expected a string")),
-        None if default_solid => "emitter",
+        None if default_solid => "emitter".into(),
         None => return Ok(None),
     };
-    let num = |key: &str, default: f64, max: f64| -> Result<Rgb, String> {
-        let v = match props.get(key) {
-            Some(v) => rgb_value(v).map_err(|e| format!("property {key}: {e}"))?,
-            None => [default; 3],
-        };
-        if v.iter().any(|x| !x.is_finite() || *x < 0.0 || *x > max) {
-            return Err(format!("property {key} = {v:?} is outside 0..={max}"));
-        }
-        Ok(v)
+    let num = |key: &str| -> Result<Option<Rgb>, String> {
+        props
+            .get(key)
+            .map(|v| rgb_value(v).map_err(|e| format!("property {key}: {e}")))
+            .transpose()
     };
     let group = match props.get("group") {
         Some(PropertyValue::StringValue(s)) => Some(s.clone()),
         Some(other) => return Err(format!("property group is {other:?}, expected a string")),
         None => None,
     };
-    let material = |kind, reflectance: Rgb, emission: Rgb| {
-        // A colour for messages and default group names, from the values.
-        let peak = emission.iter().cloned().fold(0.0, f64::max).max(1e-30);
-        let shown = if kind == MaterialKind::Emitter {
-            emission.map(|e| e / peak)
-        } else {
-            reflectance
-        };
-        Material {
-            color: shown.map(|c| (linear_to_srgb(c) * 255.0).round() as u8),
-            kind,
-            reflectance,
-            emission,
-            group: group.clone(),
-            line: None,
-        }
+    let spec = Spec {
+        kind,
+        reflectance: num("reflectance")?,
+        emission: num("emission")?,
+        albedo: num("albedo")?,
+        group,
     };
-    match kind {
-        "floor" => Ok(Some(Kind::Floor(num("albedo", 0.5, 1.0)?))),
-        "wall" => Ok(Some(Kind::Solid(material(
-            MaterialKind::Wall,
-            num("reflectance", 0.5, 1.0)?,
-            [0.0; 3],
-        )))),
-        "emitter" => Ok(Some(Kind::Solid(material(
-            MaterialKind::Emitter,
-            num("reflectance", 0.0, 1.0)?,
-            num("emission", 4.0, MAX_EMISSION)?,
-        )))),
-        other => Err(format!(
-            "unknown flatbake value {other:?} (expected wall, emitter or floor)"
-        )),
-    }
+    spec.resolve().map(Some).map_err(|e| {
+        if e.starts_with("unknown") {
+            e
+        } else {
+            format!("property {e}")
+        }
+    })
 }
 
 /// The external tileset files (`.tsx`) a map uses, which its level depends on.
@@ -192,9 +149,11 @@ pub fn load_tiled(path: &Path, limits: LoadLimits) -> Result<Level, LevelError> 
             ),
         ));
     }
-    let mut tiles: Vec<Option<Kind>> = vec![None; w * h];
+    let mut canvas = Canvas::new(w, h);
     let mut found = false;
-    for layer in map.layers() {
+    let mut layers = Vec::new();
+    flatten(map.layers(), &mut layers);
+    for &layer in &layers {
         if layer.name != layer_name {
             continue;
         }
@@ -225,10 +184,7 @@ pub fn load_tiled(path: &Path, limits: LoadLimits) -> Result<Level, LevelError> 
                         .map_err(|p| err(path, place(tx, ty, lt.id()), p))?,
                     None => None,
                 };
-                for py in 0..tpx_h {
-                    let row = (ty as usize * tpx_h + py) * w + tx as usize * tpx_w;
-                    tiles[row..row + tpx_w].fill(kind.clone());
-                }
+                canvas.fill_cell(tx as usize, ty as usize, tpx_w, tpx_h, &kind);
             }
         }
     }
@@ -243,16 +199,29 @@ pub fn load_tiled(path: &Path, limits: LoadLimits) -> Result<Level, LevelError> 
         tpx_w as f64 / map.tile_width.max(1) as f64,
         tpx_h as f64 / map.tile_height.max(1) as f64,
     );
-    for layer in map.layers() {
+    for &layer in &layers {
         let LayerType::Objects(ol) = layer.layer_type() else {
             continue;
         };
         for obj in ol.objects() {
-            if !obj.user_type.eq_ignore_ascii_case("light") {
+            // A tile object has its tile's class and properties, which
+            // its own override.
+            let tile = obj.get_tile();
+            let tile = tile.as_ref().and_then(|t| t.get_tile());
+            let light = obj.user_type.eq_ignore_ascii_case("light")
+                || tile
+                    .as_ref()
+                    .is_some_and(|t| t.user_type.eq_ignore_ascii_case("light"));
+            let mut props = tile
+                .as_ref()
+                .map(|t| t.properties.clone())
+                .unwrap_or_default();
+            props.extend(obj.properties.clone());
+            if !light && !props.contains_key("flatbake") {
                 continue;
             }
             let place = format!("layer {:?}, object {} {:?}", layer.name, obj.id(), obj.name);
-            let kind = kind_of(&obj.properties, true).map_err(|p| err(path, place.clone(), p))?;
+            let kind = kind_of(&props, light).map_err(|p| err(path, place.clone(), p))?;
             let (x0, y0) = (obj.x as f64 * sx, obj.y as f64 * sy);
             let (ow, oh, ellipse) = match obj.shape {
                 ObjectShape::Rect { width, height } => {
@@ -270,78 +239,30 @@ pub fn load_tiled(path: &Path, limits: LoadLimits) -> Result<Level, LevelError> 
                     ));
                 }
             };
-            // A point is centred on its position; rectangles and ellipses start at it.
+            // A point is centred on its position; rectangles and ellipses
+            // start at it; a tile object stands on it (its y is the bottom).
             let (x0, y0) = if matches!(obj.shape, ObjectShape::Point(..)) {
                 (x0 - ow / 2.0, y0 - oh / 2.0)
+            } else if obj.get_tile().is_some() {
+                (x0, y0 - oh)
             } else {
                 (x0, y0)
             };
-            let xs =
-                (x0.max(0.0).floor() as usize).min(w)..((x0 + ow).ceil().max(0.0) as usize).min(w);
-            let ys =
-                (y0.max(0.0).floor() as usize).min(h)..((y0 + oh).ceil().max(0.0) as usize).min(h);
-            for py in ys {
-                for px in xs.clone() {
-                    let (cx, cy) = (px as f64 + 0.5, py as f64 + 0.5);
-                    let inside = if ellipse {
-                        let (dx, dy) = (
-                            (cx - x0 - ow / 2.0) / (ow / 2.0),
-                            (cy - y0 - oh / 2.0) / (oh / 2.0),
-                        );
-                        dx * dx + dy * dy <= 1.0
-                    } else {
-                        cx >= x0 && cx <= x0 + ow && cy >= y0 && cy <= y0 + oh
-                    };
-                    if inside {
-                        tiles[py * w + px] = kind.clone();
-                    }
-                }
-            }
+            canvas.paint(x0, y0, ow, oh, ellipse, &kind);
         }
     }
-    let mut materials: Vec<Material> = Vec::new();
-    let mut index: HashMap<String, u16> = HashMap::new();
-    let mut cells = Vec::with_capacity(w * h);
-    let mut albedo = Vec::with_capacity(w * h);
-    for k in &tiles {
-        match k {
-            None => {
-                cells.push(Cell::Floor);
-                albedo.push([0.5; 3]);
-            }
-            Some(Kind::Floor(a)) => {
-                cells.push(Cell::Floor);
-                albedo.push(a.map(|v| v as f32));
-            }
-            Some(Kind::Solid(m)) => {
-                let key = format!("{m:?}");
-                let i = match index.get(&key) {
-                    Some(&i) => i,
-                    None => {
-                        if materials.len() > u16::MAX as usize {
-                            return Err(err(path, "map", "more than 65536 distinct materials"));
-                        }
-                        let i = materials.len() as u16;
-                        materials.push(m.clone());
-                        index.insert(key, i);
-                        i
-                    }
-                };
-                cells.push(Cell::Solid(i));
-                albedo.push([0.0; 3]);
-            }
+    canvas.into_level(name).map_err(|p| err(path, "map", p))
+}
+
+/// Appends `layers` and, after each group layer, the layers inside it, in
+/// the map's order.
+fn flatten<'m>(layers: impl Iterator<Item = tiled::Layer<'m>>, out: &mut Vec<tiled::Layer<'m>>) {
+    for layer in layers {
+        out.push(layer);
+        if let LayerType::Group(g) = layer.layer_type() {
+            flatten(g.layers(), out);
         }
     }
-    Ok(Level {
-        name,
-        width: w,
-        height: h,
-        cells,
-        albedo,
-        materials,
-        warnings: Vec::new(),
-        lossy_format: None,
-    })
 }
 
 /// True for a path ending in `.tmx` (any case).

@@ -24,12 +24,21 @@ pub fn batch_summary(shard: Option<(u32, u32)>) -> String {
 }
 
 /// The name a level's outputs are written under: its image's file stem
-/// (`levels/cave.png` is `cave`).
+/// (`levels/cave.png` is `cave`); for a level of an LDtk project,
+/// `PROJECT.LEVEL` (`levels/world.ldtk/Cellar` is `world.Cellar`).
 pub fn level_name(image: &Path) -> String {
+    if let Some((project, level)) = crate::level::ldtk::project_level(image) {
+        return project_level_name(project, level);
+    }
     image
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default()
+}
+
+/// The name of level `level` of the LDtk project `project`: `PROJECT.LEVEL`.
+pub fn project_level_name(project: &Path, level: &str) -> String {
+    format!("{}.{level}", level_name(project))
 }
 
 /// True when a file name is one of flatbake's own image outputs (so a

@@ -235,7 +235,13 @@ impl Palette {
     /// The files that would supply a level's palette when no `--palette` is
     /// given, in lookup order: `NAME.palette.toml` beside `NAME.png`, then
     /// `palette.toml` in the level's folder. `watch` re-bakes when one changes.
+    /// The levels of an LDtk project (`world.ldtk/Cellar`) share the
+    /// project's: `world.palette.toml`, then `palette.toml`.
     pub fn candidate_paths(level: &Path) -> [PathBuf; 2] {
+        let level = match crate::level::ldtk::project_level(level) {
+            Some((project, _)) => project,
+            None => level,
+        };
         let dir = match level.parent() {
             Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
             _ => PathBuf::from("."),
