@@ -14,6 +14,7 @@
 
 mod fast;
 pub mod lattice;
+mod local;
 mod naive;
 mod patch_tree;
 
