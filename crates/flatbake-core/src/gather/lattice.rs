@@ -66,14 +66,10 @@ pub(super) fn gather(
     // Pixels of a cell that failed at the last spacing: gathered at the end
     // even if a neighbouring cell interpolated them.
     let mut exact_too = vec![false; pixels.len()];
-    // What each probe sees (every edge, lit or not), for the sweeps of the
-    // cells that fail at the last spacing ([`super::local`]).
-    let mut seen: Vec<Vec<u32>> = vec![Vec::new(); pixels.len()];
-    // Per pixel: the failed cell of the last spacing whose sweep gathers it.
-    let mut group_of = vec![u32::MAX; pixels.len()];
-    let mut groups: Vec<local::Group> = Vec::new();
     let mut stats = VisitStats::default();
     let mut counts = GatherCounts::default();
+    // What the anchors see, for the sweeps of the pixels between them.
+    let mut lists = local::Lists::new(pixels.len());
     // Top-left corners of the cells that passed at the previous spacing.
     let mut passed: std::collections::HashSet<[i32; 2]> = Default::default();
     for (level, &step) in STEPS.iter().enumerate() {
@@ -101,16 +97,17 @@ pub(super) fn gather(
                 }
             }
         }
-        let pts: Vec<[i32; 2]> = want.iter().map(|&i| pixels[i]).collect();
-        let (pass, pass_seen) = local::run_recording(exact, &pts, Some(relative));
-        for ((j, &i), list) in want.iter().enumerate().zip(pass_seen) {
-            values[i * k..(i + 1) * k].copy_from_slice(&pass.values[j * k..(j + 1) * k]);
-            signature[i] = pass.signature[j];
-            seen[i] = list;
-        }
-        stats.culled_pairs += pass.stats.culled_pairs;
-        stats.unreached += pass.stats.unreached;
-        counts += pass.counts;
+        let (s, c) = lists.gather(
+            exact,
+            pixels,
+            &index,
+            &want,
+            Some(relative),
+            (&mut values, &mut signature, &mut state),
+        );
+        stats.culled_pairs += s.culled_pairs;
+        stats.unreached += s.unreached;
+        counts += c;
         let last = level + 1 == STEPS.len();
         let mut now_passed = std::collections::HashSet::new();
         for &[x0, y0] in &cells {
@@ -136,12 +133,6 @@ pub(super) fn gather(
             if !smooth && !last {
                 continue;
             }
-            if !smooth {
-                groups.push(local::Group {
-                    probes: probe.to_vec(),
-                    pixels: Vec::new(),
-                });
-            }
             for y in y0..=y0 + step {
                 for x in x0..=x0 + step {
                     let i = index(x, y).expect("a whole cell is floor");
@@ -150,10 +141,6 @@ pub(super) fn gather(
                     }
                     if !smooth {
                         exact_too[i] = true;
-                        if group_of[i] == u32::MAX {
-                            group_of[i] = groups.len() as u32 - 1;
-                            groups.last_mut().expect("pushed above").pixels.push(pixels[i]);
-                        }
                         continue;
                     }
                     let u = (x - x0) as f64 / step as f64;
@@ -172,42 +159,29 @@ pub(super) fn gather(
         }
         passed = now_passed;
     }
-    // The pixels of rough cells: a sweep over what the cell's probes see.
-    // Cells of one 8 px tile one after the other, as the patch cuts are
-    // per tile.
-    groups.sort_by_key(|gr| {
-        let [x, y] = pixels[gr.probes[0]];
-        (y / 8, x / 8, y, x)
-    });
-    let pass = local::run_local(exact, &groups, &seen);
-    drop(seen);
-    for (j, i) in groups
-        .iter()
-        .flat_map(|gr| gr.pixels.iter())
-        .map(|p| index(p[0], p[1]).expect("a whole cell is floor"))
-        .enumerate()
-    {
-        values[i * k..(i + 1) * k].copy_from_slice(&pass.values[j * k..(j + 1) * k]);
-    }
-    stats.culled_pairs += pass.stats.culled_pairs;
-    counts += pass.counts;
-    // Last pass: pixels in no whole cell.
+    // Last pass: pixels of rough cells, and those in no whole cell.
     let rest: Vec<usize> = (0..pixels.len())
-        .filter(|&i| state[i] == 0 && group_of[i] == u32::MAX)
+        .filter(|&i| state[i] == 0 || (state[i] == 2 && exact_too[i]))
         .collect();
     let interpolated = (0..pixels.len())
         .filter(|&i| state[i] == 2 && !exact_too[i])
         .count();
     exact.done(interpolated);
-    let pts: Vec<[i32; 2]> = rest.iter().map(|&i| pixels[i]).collect();
-    let pass = exact.run(&pts, None);
-    for (j, &i) in rest.iter().enumerate() {
-        values[i * k..(i + 1) * k].copy_from_slice(&pass.values[j * k..(j + 1) * k]);
-    }
-    stats.culled_pairs += pass.stats.culled_pairs;
-    stats.unreached += pass.stats.unreached;
-    counts += pass.counts;
-    counts.interpolated = interpolated as u64;
+    let (s, c) = lists.gather(
+        exact,
+        pixels,
+        &index,
+        &rest,
+        None,
+        (&mut values, &mut signature, &mut state),
+    );
+    stats.culled_pairs += s.culled_pairs;
+    stats.unreached += s.unreached;
+    counts += c;
+    // (Less the anchors that the last pass gathered exactly.)
+    counts.interpolated = (0..pixels.len())
+        .filter(|&i| state[i] == 2 && !exact_too[i])
+        .count() as u64;
     (values, stats, counts)
 }
 
