@@ -22,6 +22,7 @@ use crate::visibility::VisitStats;
 
 use super::fast::{Exact, GatherCounts};
 use super::local;
+pub use super::local::{ANCHOR, NEAR};
 
 /// Lattice spacings, coarsest first, in pixels: a cell that fails its test
 /// is split into cells of the next spacing, and after the last one gathered

@@ -10,7 +10,8 @@
 //! hidden. A sweep over a list is exact for the edges on it: every light
 //! and wall on the list is seen exactly as a full query sees it, shadows
 //! included, and every edge within [`NEAR`] px of the block is on the list,
-//! so no pixel sees through a wall beside it. What the list can miss is a
+//! so no pixel sees through a wall beside it. Blocks with a corner in a wall
+//! or in another region are gathered with full queries. What the list can miss is a
 //! distant edge that no corner anchor sees but a pixel between them does
 //! (through a gap narrower than the anchors' spacing, or around a corner):
 //! the pixel then sees what lies behind it on the list, or nothing. That
@@ -132,8 +133,8 @@ impl Lists {
     }
 
     /// Gathers the pixels `want` (indices into `pixels`, found by position
-    /// with `index`): anchors, and pixels with no anchor of their own free
-    /// region at a corner of their block, by a full query; the others by a
+    /// with `index`): anchors, and pixels whose block has a corner that is
+    /// not a floor pixel of their own free region, by a full query; the others by a
     /// sweep over their block's list. The anchors a block needs are
     /// gathered too. With `signatures`, each pixel's signature as in
     /// [`Exact::run`].
@@ -172,7 +173,10 @@ impl Lists {
                 .filter_map(|(cx, cy)| index(cx, cy))
                 .filter(|&c| comp(pixels[c]) == comp([x, y]))
                 .collect();
-            if corners.is_empty() {
+            // A block with a corner in a wall or in another region: its
+            // anchors may not see around the wall's end (measured: a pixel
+            // above the end of a thin wall then missed what lay beyond it).
+            if corners.len() < 4 {
                 full.push(i);
                 continue;
             }
