@@ -114,7 +114,10 @@ pub(super) struct Lists {
 
 /// A block's pixels to sweep, and the anchors whose lists they use.
 struct Group {
+    /// The block of `ANCHOR` px holding it (for the near edges), and the
+    /// top left corner of its own block (of `ANCHOR` or half that).
     block: [i32; 2],
+    origin: [i32; 2],
     anchors: Vec<usize>,
     pixels: Vec<usize>,
 }
@@ -152,14 +155,12 @@ impl Lists {
         let comp = |p: [i32; 2]| g.components[p[1] as usize * g.width + p[0] as usize];
         let mut anchors: Vec<usize> = Vec::new();
         let mut full: Vec<usize> = Vec::new();
-        let mut blocks: std::collections::HashMap<[i32; 2], usize> = Default::default();
+        let mut blocks: std::collections::HashMap<[i32; 3], usize> = Default::default();
         let mut groups: Vec<Group> = Vec::new();
         let mut pending = vec![false; pixels.len()];
-        let mut wanted_anchors = 0;
         for &i in want {
             let [x, y] = pixels[i];
             if x % ANCHOR == 0 && y % ANCHOR == 0 {
-                wanted_anchors += usize::from(!self.anchored[i]);
                 if !self.anchored[i] && !pending[i] {
                     pending[i] = true;
                     anchors.push(i);
@@ -167,22 +168,30 @@ impl Lists {
                 continue;
             }
             let (bx, by) = (x.div_euclid(ANCHOR), y.div_euclid(ANCHOR));
-            let (x0, y0) = (bx * ANCHOR, by * ANCHOR);
-            let corners: Vec<usize> = [(x0, y0), (x0 + ANCHOR, y0), (x0, y0 + ANCHOR), (x0 + ANCHOR, y0 + ANCHOR)]
+            // The pixel's block, or near a wall the block of half the
+            // spacing around it, whose four corners are floor of its region.
+            // A block with a corner in a wall or in another region is not
+            // used: its anchors may not see around the wall's end
+            // (measured: a pixel above the end of a thin wall then missed
+            // what lay beyond it).
+            let corners_of = |step: i32| -> Option<[usize; 4]> {
+                let (x0, y0) = (x - x.rem_euclid(step), y - y.rem_euclid(step));
+                let c = [(x0, y0), (x0 + step, y0), (x0, y0 + step), (x0 + step, y0 + step)]
+                    .map(|(cx, cy)| index(cx, cy).filter(|&c| comp(pixels[c]) == comp([x, y])));
+                Some([c[0]?, c[1]?, c[2]?, c[3]?])
+            };
+            let Some((step, corners)) = [ANCHOR, ANCHOR / 2]
                 .into_iter()
-                .filter_map(|(cx, cy)| index(cx, cy))
-                .filter(|&c| comp(pixels[c]) == comp([x, y]))
-                .collect();
-            // A block with a corner in a wall or in another region: its
-            // anchors may not see around the wall's end (measured: a pixel
-            // above the end of a thin wall then missed what lay beyond it).
-            if corners.len() < 4 {
+                .find_map(|step| Some((step, corners_of(step)?)))
+            else {
                 full.push(i);
                 continue;
-            }
-            let gi = *blocks.entry([bx, by]).or_insert_with(|| {
+            };
+            let origin = [x - x.rem_euclid(step), y - y.rem_euclid(step)];
+            let gi = *blocks.entry([origin[0], origin[1], step]).or_insert_with(|| {
                 groups.push(Group {
                     block: [bx, by],
+                    origin,
                     anchors: Vec::new(),
                     pixels: Vec::new(),
                 });
@@ -200,6 +209,10 @@ impl Lists {
             }
             gr.pixels.push(i);
         }
+        // A pixel that is a corner of another block is gathered as an anchor.
+        for gr in &mut groups {
+            gr.pixels.retain(|&i| !pending[i]);
+        }
         let mut stats = VisitStats::default();
         let mut counts = GatherCounts::default();
         // Anchors: a full query, keeping what each sees.
@@ -214,7 +227,10 @@ impl Lists {
             self.seen[i] = list;
             self.anchored[i] = true;
         }
-        exact.done(wanted_anchors);
+        // (Progress: the wanted pixels that neither the full queries nor
+        // the sweeps below count.)
+        let swept: usize = groups.iter().map(|gr| gr.pixels.len()).sum();
+        exact.done(want.len().saturating_sub(full.len() + swept));
         stats.culled_pairs += dropped;
         counts += pass.counts;
         // Pixels with no anchor: a full query each.
@@ -233,8 +249,8 @@ impl Lists {
         // The rest: a sweep over their block's list. Blocks of one 8 px tile
         // one after the other, as the patch cuts are per tile.
         groups.sort_by_key(|gr| {
-            let [bx, by] = gr.block;
-            (by * ANCHOR / 8, bx * ANCHOR / 8, by, bx)
+            let [x0, y0] = gr.origin;
+            (y0 / 8, x0 / 8, y0, x0)
         });
         if !groups.is_empty() && self.near.is_none() {
             self.near = Some(Near::new(g));
