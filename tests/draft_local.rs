@@ -18,9 +18,17 @@ fn pillared_room() -> Level {
     let (w, h) = (72, 44);
     let mut rows = room(w, h);
     let mut put = |x: usize, y: usize, c: char| rows[y].replace_range(x..x + 1, &c.to_string());
-    for (i, (x, y)) in [(9, 7), (21, 30), (33, 12), (46, 27), (58, 9), (61, 34), (15, 20)]
-        .into_iter()
-        .enumerate()
+    for (i, (x, y)) in [
+        (9, 7),
+        (21, 30),
+        (33, 12),
+        (46, 27),
+        (58, 9),
+        (61, 34),
+        (15, 20),
+    ]
+    .into_iter()
+    .enumerate()
     {
         let side = 1 + i % 3;
         for dy in 0..side {
@@ -86,13 +94,43 @@ fn draft_sweeps_stay_close_to_the_exact_draft_gather() {
     let rms = (sq / norm).sqrt();
     if std::env::var_os("DRAFT_DEBUG").is_some() {
         let w = lvl.width;
-        let mut v: Vec<(f64, usize, f64, f64)> = a.iter().zip(&b).enumerate().filter_map(|(i, (x, y))| Some(((x.as_ref()? - y.as_ref()?).abs() / top, i, (*x)?, (*y)?))).collect();
+        let mut v: Vec<(f64, usize, f64, f64)> = a
+            .iter()
+            .zip(&b)
+            .enumerate()
+            .filter_map(|(i, (x, y))| {
+                Some(((x.as_ref()? - y.as_ref()?).abs() / top, i, (*x)?, (*y)?))
+            })
+            .collect();
         v.sort_by(|p, q| q.0.total_cmp(&p.0));
         for (d, i, x, y) in v.iter().take(40) {
-            eprintln!("({}, {}) draft {x:.4} exact {y:.4} off {d:.4}", i % w, i / w);
+            eprintln!(
+                "({}, {}) draft {x:.4} exact {y:.4} off {d:.4}",
+                i % w,
+                i / w
+            );
         }
         for y in 0..lvl.height {
-            let row: String = (0..w).map(|x| { let i = y * w + x; match (a[i], b[i]) { (Some(p), Some(q)) => { let d = (p - q).abs() / top; if d > 0.02 { '@' } else if d > 0.005 { '+' } else if d > 1e-6 { '.' } else { ' ' } }, _ => '#' } }).collect();
+            let row: String = (0..w)
+                .map(|x| {
+                    let i = y * w + x;
+                    match (a[i], b[i]) {
+                        (Some(p), Some(q)) => {
+                            let d = (p - q).abs() / top;
+                            if d > 0.02 {
+                                '@'
+                            } else if d > 0.005 {
+                                '+'
+                            } else if d > 1e-6 {
+                                '.'
+                            } else {
+                                ' '
+                            }
+                        }
+                        _ => '#',
+                    }
+                })
+                .collect();
             eprintln!("{row}");
         }
     }

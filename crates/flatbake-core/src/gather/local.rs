@@ -176,8 +176,13 @@ impl Lists {
             // what lay beyond it).
             let corners_of = |step: i32| -> Option<[usize; 4]> {
                 let (x0, y0) = (x - x.rem_euclid(step), y - y.rem_euclid(step));
-                let c = [(x0, y0), (x0 + step, y0), (x0, y0 + step), (x0 + step, y0 + step)]
-                    .map(|(cx, cy)| index(cx, cy).filter(|&c| comp(pixels[c]) == comp([x, y])));
+                let c = [
+                    (x0, y0),
+                    (x0 + step, y0),
+                    (x0, y0 + step),
+                    (x0 + step, y0 + step),
+                ]
+                .map(|(cx, cy)| index(cx, cy).filter(|&c| comp(pixels[c]) == comp([x, y])));
                 Some([c[0]?, c[1]?, c[2]?, c[3]?])
             };
             let Some((step, corners)) = [ANCHOR, ANCHOR / 2]
@@ -188,15 +193,17 @@ impl Lists {
                 continue;
             };
             let origin = [x - x.rem_euclid(step), y - y.rem_euclid(step)];
-            let gi = *blocks.entry([origin[0], origin[1], step]).or_insert_with(|| {
-                groups.push(Group {
-                    block: [bx, by],
-                    origin,
-                    anchors: Vec::new(),
-                    pixels: Vec::new(),
+            let gi = *blocks
+                .entry([origin[0], origin[1], step])
+                .or_insert_with(|| {
+                    groups.push(Group {
+                        block: [bx, by],
+                        origin,
+                        anchors: Vec::new(),
+                        pixels: Vec::new(),
+                    });
+                    groups.len() - 1
                 });
-                groups.len() - 1
-            });
             let gr = &mut groups[gi];
             for c in corners {
                 if !gr.anchors.contains(&c) {
@@ -384,7 +391,14 @@ fn run_recording(
     let (light, rad) = (exact.light, exact.light.rad);
     let k = rad.components;
     let mut out = vec![0.0; pixels.len() * k];
-    let mut sigs = vec![0u64; if signatures.is_some() { pixels.len() } else { 0 }];
+    let mut sigs = vec![
+        0u64;
+        if signatures.is_some() {
+            pixels.len()
+        } else {
+            0
+        }
+    ];
     let mut seen: Vec<Vec<u32>> = vec![Vec::new(); pixels.len()];
     let mut merged = vec![[0u32; 3]; pixels.len()];
     let pos: Vec<[f64; 2]> = pixels
