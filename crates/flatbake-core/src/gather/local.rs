@@ -169,13 +169,24 @@ impl Lists {
             }
             let (bx, by) = (x.div_euclid(ANCHOR), y.div_euclid(ANCHOR));
             // The pixel's block, or near a wall the block of half the
-            // spacing around it, whose four corners are floor of its region.
+            // spacing around it, if all of it is floor of the pixel's region.
             // A block with a corner in a wall or in another region is not
             // used: its anchors may not see around the wall's end
             // (measured: a pixel above the end of a thin wall then missed
             // what lay beyond it).
             let corners_of = |step: i32| -> Option<[usize; 4]> {
                 let (x0, y0) = (x - x.rem_euclid(step), y - y.rem_euclid(step));
+                // Every pixel of the block floor of the region, not only its
+                // corners: a solid pixel inside it hides from the corners
+                // what the pixels around it see (measured on wall noise).
+                let open = (y0..=y0 + step).all(|by| {
+                    (x0..=x0 + step).all(|bx| {
+                        index(bx, by).is_some_and(|c| comp(pixels[c]) == comp([x, y]))
+                    })
+                });
+                if !open {
+                    return None;
+                }
                 let c = [
                     (x0, y0),
                     (x0 + step, y0),
