@@ -25,8 +25,9 @@ pub struct GatherCounts {
     /// Pixels whose light was interpolated between exactly gathered lattice
     /// points instead of gathered ([`GatherOptions::lattice`]).
     pub interpolated: u64,
-    /// Pixels gathered with a sweep over the edges that the probes of
-    /// their lattice cell see ([`super::local`]) instead of a full query.
+    /// Pixels gathered with a sweep over the edges that the anchors of
+    /// their block see ([`super::lattice::ANCHOR`]) instead of a full
+    /// visibility query.
     pub local: u64,
 }
 

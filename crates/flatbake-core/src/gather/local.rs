@@ -10,8 +10,9 @@
 //! hidden. A sweep over a list is exact for the edges on it: every light
 //! and wall on the list is seen exactly as a full query sees it, shadows
 //! included, and every edge within [`NEAR`] px of the block is on the list,
-//! so no pixel sees through a wall beside it. Blocks with a corner in a wall
-//! or in another region are gathered with full queries. What the list can miss is a
+//! so no pixel sees through a wall beside it. A pixel whose block is not floor
+//! of its region throughout (nor, near a wall, the block of half the
+//! spacing around it) gets a full query. What the list can miss is a
 //! distant edge that no corner anchor sees but a pixel between them does
 //! (through a gap narrower than the anchors' spacing, or around a corner):
 //! the pixel then sees what lies behind it on the list, or nothing. That
