@@ -181,9 +181,8 @@ impl Lists {
                 // corners: a solid pixel inside it hides from the corners
                 // what the pixels around it see (measured on wall noise).
                 let open = (y0..=y0 + step).all(|by| {
-                    (x0..=x0 + step).all(|bx| {
-                        index(bx, by).is_some_and(|c| comp(pixels[c]) == comp([x, y]))
-                    })
+                    (x0..=x0 + step)
+                        .all(|bx| index(bx, by).is_some_and(|c| comp(pixels[c]) == comp([x, y])))
                 });
                 if !open {
                     return None;
