@@ -177,6 +177,18 @@ fn run(
                     ),
                 );
             }
+            if counts.local > 0 {
+                log.skip(
+                    "pixels",
+                    format!(
+                        "{} of {} floor pixels gathered with a sweep over the edges that the anchors at the corners of their {} px block see and the edges within {} px of it, instead of a full visibility query (exact for those edges; a distant edge that no anchor sees is missed)",
+                        counts.local,
+                        reached.len(),
+                        gather::lattice::ANCHOR,
+                        gather::lattice::NEAR,
+                    ),
+                );
+            }
             if ctx.reach_bound > 0.0 && counts.pieces < counts.patch_pieces {
                 log.skip(
                     "distant patches",

@@ -25,6 +25,10 @@ pub struct GatherCounts {
     /// Pixels whose light was interpolated between exactly gathered lattice
     /// points instead of gathered ([`GatherOptions::lattice`]).
     pub interpolated: u64,
+    /// Pixels gathered with a sweep over the edges that the anchors of
+    /// their block see ([`super::lattice::ANCHOR`]) instead of a full
+    /// visibility query.
+    pub local: u64,
 }
 
 impl std::ops::AddAssign for GatherCounts {
@@ -32,6 +36,7 @@ impl std::ops::AddAssign for GatherCounts {
         self.pieces += o.pieces;
         self.patch_pieces += o.patch_pieces;
         self.interpolated += o.interpolated;
+        self.local += o.local;
     }
 }
 
@@ -564,8 +569,8 @@ pub fn gather_with_moments(
 pub(super) struct Exact<'a> {
     pub geometry: &'a Geometry,
     pub light: &'a Lighting<'a>,
-    reach_max: f64,
-    reach2: &'a [f64],
+    pub reach_max: f64,
+    pub reach2: &'a [f64],
     tally: &'a Tally<'a>,
     /// Also the moments ([`Pass::moments`]).
     pub directional: bool,
@@ -697,7 +702,7 @@ impl Exact<'_> {
 /// the same lights whole or cut by the same shadow lines; a hard shadow
 /// line between them, or a light that appears, changes it. A face of a
 /// light turning edge-on does not (its light goes smoothly to 0).
-fn signature(
+pub(super) fn signature(
     light: &Lighting,
     spans: &[Span],
     sc: &PixelScratch,

@@ -21,6 +21,8 @@
 use crate::visibility::VisitStats;
 
 use super::fast::{Exact, Gather, GatherCounts};
+use super::local;
+pub use super::local::{ANCHOR, NEAR};
 
 /// Lattice spacings, coarsest first, in pixels: a cell that fails its test
 /// is split into cells of the next spacing, and after the last one gathered
@@ -66,6 +68,8 @@ pub(super) fn gather(exact: &Exact, pixels: &[[i32; 2]], relative: f64, absolute
     let mut exact_too = vec![false; pixels.len()];
     let mut stats = VisitStats::default();
     let mut counts = GatherCounts::default();
+    // What the anchors see, for the sweeps of the pixels between them.
+    let mut lists = local::Lists::new(pixels.len());
     // Top-left corners of the cells that passed at the previous spacing.
     let mut passed: std::collections::HashSet<[i32; 2]> = Default::default();
     for (level, &step) in STEPS.iter().enumerate() {
@@ -93,16 +97,17 @@ pub(super) fn gather(exact: &Exact, pixels: &[[i32; 2]], relative: f64, absolute
                 }
             }
         }
-        let pts: Vec<[i32; 2]> = want.iter().map(|&i| pixels[i]).collect();
-        let pass = exact.run(&pts, Some(relative));
-        for (j, &i) in want.iter().enumerate() {
-            values[i * k..(i + 1) * k].copy_from_slice(&pass.values[j * k..(j + 1) * k]);
-            moments[i * km..(i + 1) * km].copy_from_slice(&pass.moments[j * km..(j + 1) * km]);
-            signature[i] = pass.signature[j];
-        }
-        stats.culled_pairs += pass.stats.culled_pairs;
-        stats.unreached += pass.stats.unreached;
-        counts += pass.counts;
+        let (s, c) = lists.gather(
+            exact,
+            pixels,
+            &index,
+            &want,
+            Some(relative),
+            (&mut values, &mut moments, &mut signature, &mut state),
+        );
+        stats.culled_pairs += s.culled_pairs;
+        stats.unreached += s.unreached;
+        counts += c;
         let last = level + 1 == STEPS.len();
         let mut now_passed = std::collections::HashSet::new();
         for &[x0, y0] in &cells {
@@ -169,16 +174,21 @@ pub(super) fn gather(exact: &Exact, pixels: &[[i32; 2]], relative: f64, absolute
         .filter(|&i| state[i] == 2 && !exact_too[i])
         .count();
     exact.done(interpolated);
-    let pts: Vec<[i32; 2]> = rest.iter().map(|&i| pixels[i]).collect();
-    let pass = exact.run(&pts, None);
-    for (j, &i) in rest.iter().enumerate() {
-        values[i * k..(i + 1) * k].copy_from_slice(&pass.values[j * k..(j + 1) * k]);
-        moments[i * km..(i + 1) * km].copy_from_slice(&pass.moments[j * km..(j + 1) * km]);
-    }
-    stats.culled_pairs += pass.stats.culled_pairs;
-    stats.unreached += pass.stats.unreached;
-    counts += pass.counts;
-    counts.interpolated = interpolated as u64;
+    let (s, c) = lists.gather(
+        exact,
+        pixels,
+        &index,
+        &rest,
+        None,
+        (&mut values, &mut moments, &mut signature, &mut state),
+    );
+    stats.culled_pairs += s.culled_pairs;
+    stats.unreached += s.unreached;
+    counts += c;
+    // (Less the anchors that the last pass gathered exactly.)
+    counts.interpolated = (0..pixels.len())
+        .filter(|&i| state[i] == 2 && !exact_too[i])
+        .count() as u64;
     Gather {
         values,
         moments,

@@ -15,6 +15,7 @@
 mod directional;
 mod fast;
 pub mod lattice;
+mod local;
 mod naive;
 mod patch_tree;
 

@@ -1,0 +1,504 @@
+//! Block-local visibility for the interpolated gather (`draft`): a full
+//! visibility query only at anchor pixels (both coordinates multiples of
+//! [`ANCHOR`]), and for every other pixel the lattice asks for, an angular
+//! sweep over a short list: the edges that the anchors at the corners of
+//! its block see, and every edge near the block (docs/performance.md,
+//! sixth pass).
+//!
+//! A full query walks the level's blocks of edges from near to far until
+//! nearer surfaces hide the rest; most of its time goes into proving blocks
+//! hidden. A sweep over a list is exact for the edges on it: every light
+//! and wall on the list is seen exactly as a full query sees it, shadows
+//! included, and every edge within [`NEAR`] px of the block is on the list,
+//! so no pixel sees through a wall beside it. A pixel whose block is not floor
+//! of its region throughout (nor, near a wall, the block of half the
+//! spacing around it) gets a full query. What the list can miss is a
+//! distant edge that no corner anchor sees but a pixel between them does
+//! (through a gap narrower than the anchors' spacing, or around a corner):
+//! the pixel then sees what lies behind it on the list, or nothing. That
+//! error is measured per class of level in docs/performance.md.
+
+use rayon::prelude::*;
+
+use crate::geometry::Geometry;
+use crate::visibility::{Span, Sweeper, View, Viewpoint, VisitStats, Wanted};
+
+use super::Disjoint;
+use super::fast::{Exact, GatherCounts, PixelScratch, pixel_light, signature};
+
+/// Spacing of the anchor pixels, in pixels.
+pub const ANCHOR: i32 = 4;
+
+/// Edges that come within this many pixels of a block's pixels are on the
+/// block's list whatever its anchors see.
+pub const NEAR: i32 = 2;
+
+/// Per-thread buffers of the passes below.
+#[derive(Default)]
+struct Buffers {
+    sweeper: Sweeper,
+    spans: Vec<Span>,
+    lit: Vec<Span>,
+    list: Vec<u32>,
+    scratch: PixelScratch,
+}
+
+thread_local! {
+    static BUFFERS: std::cell::RefCell<Buffers> = std::cell::RefCell::new(Buffers::default());
+}
+
+/// The edges near each block of `ANCHOR` x `ANCHOR` pixels (those whose
+/// bounding box comes within [`NEAR`] of the block's pixels and of the
+/// anchors on its far sides).
+struct Near {
+    nx: usize,
+    start: Vec<u32>,
+    list: Vec<u32>,
+}
+
+impl Near {
+    fn new(g: &Geometry) -> Near {
+        let s = ANCHOR;
+        let nx = (g.width as i32 / s + 1) as usize;
+        let ny = (g.height as i32 / s + 1) as usize;
+        // Block (bx, by) holds the pixels from s * bx to s * bx + s (the far
+        // anchors included), so the area [s bx - NEAR, s bx + s + 1 + NEAR].
+        let range = |lo: i32, hi: i32, n: usize| {
+            let a = (lo - s - 1 - NEAR + s - 1).div_euclid(s).max(0);
+            let b = (hi + NEAR).div_euclid(s).min(n as i32 - 1);
+            a..=b
+        };
+        let mut count = vec![0u32; nx * ny + 1];
+        let each = |f: &mut dyn FnMut(usize, u32)| {
+            for (ei, e) in g.edges.iter().enumerate() {
+                let (x0, x1) = (e.a[0].min(e.b[0]), e.a[0].max(e.b[0]));
+                let (y0, y1) = (e.a[1].min(e.b[1]), e.a[1].max(e.b[1]));
+                for by in range(y0, y1, ny) {
+                    for bx in range(x0, x1, nx) {
+                        f(by as usize * nx + bx as usize, ei as u32);
+                    }
+                }
+            }
+        };
+        each(&mut |b, _| count[b + 1] += 1);
+        for i in 0..nx * ny {
+            count[i + 1] += count[i];
+        }
+        let mut fill = count.clone();
+        let mut list = vec![0u32; count[nx * ny] as usize];
+        each(&mut |b, ei| {
+            list[fill[b] as usize] = ei;
+            fill[b] += 1;
+        });
+        Near {
+            nx,
+            start: count,
+            list,
+        }
+    }
+
+    fn of(&self, bx: i32, by: i32) -> &[u32] {
+        let b = by as usize * self.nx + bx as usize;
+        &self.list[self.start[b] as usize..self.start[b + 1] as usize]
+    }
+}
+
+/// What the anchors see, kept for the sweeps of the pixels between them.
+pub(super) struct Lists {
+    /// Per pixel (anchors only): every edge it sees, lit or not, sorted.
+    seen: Vec<Vec<u32>>,
+    /// Per pixel: gathered by a full query, with `seen` filled.
+    anchored: Vec<bool>,
+    /// Built when a first block is swept.
+    near: Option<Near>,
+}
+
+/// A block's pixels to sweep, and the anchors whose lists they use.
+struct Group {
+    /// The block of `ANCHOR` px holding it (for the near edges), and the
+    /// top left corner of its own block (of `ANCHOR` or half that).
+    block: [i32; 2],
+    origin: [i32; 2],
+    anchors: Vec<usize>,
+    pixels: Vec<usize>,
+}
+
+/// Where a pass writes: per pixel its values, its signature and its state
+/// (set to 1, gathered, for every pixel a pass gathers).
+pub(super) type Out<'a> = (&'a mut [f64], &'a mut [f64], &'a mut [u64], &'a mut [u8]);
+
+impl Lists {
+    pub fn new(pixels: usize) -> Lists {
+        Lists {
+            seen: vec![Vec::new(); pixels],
+            anchored: vec![false; pixels],
+            near: None,
+        }
+    }
+
+    /// Gathers the pixels `want` (indices into `pixels`, found by position
+    /// with `index`): anchors, and pixels whose block has a corner that is
+    /// not a floor pixel of their own free region, by a full query; the others by a
+    /// sweep over their block's list. The anchors a block needs are
+    /// gathered too. With `signatures`, each pixel's signature as in
+    /// [`Exact::run`].
+    pub fn gather(
+        &mut self,
+        exact: &Exact,
+        pixels: &[[i32; 2]],
+        index: &dyn Fn(i32, i32) -> Option<usize>,
+        want: &[usize],
+        signatures: Option<f64>,
+        (values, moments, sigs, state): Out,
+    ) -> (VisitStats, GatherCounts) {
+        let g = exact.geometry;
+        let k = exact.components();
+        let km = if exact.directional { 2 * k } else { 0 };
+        let comp = |p: [i32; 2]| g.components[p[1] as usize * g.width + p[0] as usize];
+        let mut anchors: Vec<usize> = Vec::new();
+        let mut full: Vec<usize> = Vec::new();
+        let mut blocks: std::collections::HashMap<[i32; 3], usize> = Default::default();
+        let mut groups: Vec<Group> = Vec::new();
+        let mut pending = vec![false; pixels.len()];
+        for &i in want {
+            let [x, y] = pixels[i];
+            if x % ANCHOR == 0 && y % ANCHOR == 0 {
+                if !self.anchored[i] && !pending[i] {
+                    pending[i] = true;
+                    anchors.push(i);
+                }
+                continue;
+            }
+            let (bx, by) = (x.div_euclid(ANCHOR), y.div_euclid(ANCHOR));
+            // The pixel's block, or near a wall the block of half the
+            // spacing around it, if all of it is floor of the pixel's region.
+            // A block with a corner in a wall or in another region is not
+            // used: its anchors may not see around the wall's end
+            // (measured: a pixel above the end of a thin wall then missed
+            // what lay beyond it).
+            let corners_of = |step: i32| -> Option<[usize; 4]> {
+                let (x0, y0) = (x - x.rem_euclid(step), y - y.rem_euclid(step));
+                // Every pixel of the block floor of the region, not only its
+                // corners: a solid pixel inside it hides from the corners
+                // what the pixels around it see (measured on wall noise).
+                let open = (y0..=y0 + step).all(|by| {
+                    (x0..=x0 + step)
+                        .all(|bx| index(bx, by).is_some_and(|c| comp(pixels[c]) == comp([x, y])))
+                });
+                if !open {
+                    return None;
+                }
+                let c = [
+                    (x0, y0),
+                    (x0 + step, y0),
+                    (x0, y0 + step),
+                    (x0 + step, y0 + step),
+                ]
+                .map(|(cx, cy)| index(cx, cy).filter(|&c| comp(pixels[c]) == comp([x, y])));
+                Some([c[0]?, c[1]?, c[2]?, c[3]?])
+            };
+            let Some((step, corners)) = [ANCHOR, ANCHOR / 2]
+                .into_iter()
+                .find_map(|step| Some((step, corners_of(step)?)))
+            else {
+                full.push(i);
+                continue;
+            };
+            let origin = [x - x.rem_euclid(step), y - y.rem_euclid(step)];
+            let gi = *blocks
+                .entry([origin[0], origin[1], step])
+                .or_insert_with(|| {
+                    groups.push(Group {
+                        block: [bx, by],
+                        origin,
+                        anchors: Vec::new(),
+                        pixels: Vec::new(),
+                    });
+                    groups.len() - 1
+                });
+            let gr = &mut groups[gi];
+            for c in corners {
+                if !gr.anchors.contains(&c) {
+                    gr.anchors.push(c);
+                }
+                if !self.anchored[c] && !pending[c] {
+                    pending[c] = true;
+                    anchors.push(c);
+                }
+            }
+            gr.pixels.push(i);
+        }
+        // A pixel that is a corner of another block is gathered as an anchor.
+        for gr in &mut groups {
+            gr.pixels.retain(|&i| !pending[i]);
+        }
+        let mut stats = VisitStats::default();
+        let mut counts = GatherCounts::default();
+        // Anchors: a full query, keeping what each sees.
+        let pts: Vec<[i32; 2]> = anchors.iter().map(|&i| pixels[i]).collect();
+        let (pass, seen, dropped) = run_recording(exact, &pts, signatures);
+        for ((j, &i), list) in anchors.iter().enumerate().zip(seen) {
+            values[i * k..(i + 1) * k].copy_from_slice(&pass.values[j * k..(j + 1) * k]);
+            moments[i * km..(i + 1) * km].copy_from_slice(&pass.moments[j * km..(j + 1) * km]);
+            if signatures.is_some() {
+                sigs[i] = pass.signature[j];
+            }
+            state[i] = 1;
+            self.seen[i] = list;
+            self.anchored[i] = true;
+        }
+        // (Progress: the wanted pixels that neither the full queries nor
+        // the sweeps below count.)
+        let swept: usize = groups.iter().map(|gr| gr.pixels.len()).sum();
+        exact.done(want.len().saturating_sub(full.len() + swept));
+        stats.culled_pairs += dropped;
+        counts += pass.counts;
+        // Pixels with no anchor: a full query each.
+        let pts: Vec<[i32; 2]> = full.iter().map(|&i| pixels[i]).collect();
+        let pass = exact.run(&pts, signatures);
+        for (j, &i) in full.iter().enumerate() {
+            values[i * k..(i + 1) * k].copy_from_slice(&pass.values[j * k..(j + 1) * k]);
+            moments[i * km..(i + 1) * km].copy_from_slice(&pass.moments[j * km..(j + 1) * km]);
+            if signatures.is_some() {
+                sigs[i] = pass.signature[j];
+            }
+            state[i] = 1;
+        }
+        stats.culled_pairs += pass.stats.culled_pairs;
+        stats.unreached += pass.stats.unreached;
+        counts += pass.counts;
+        // The rest: a sweep over their block's list. Blocks of one 8 px tile
+        // one after the other, as the patch cuts are per tile.
+        groups.sort_by_key(|gr| {
+            let [x0, y0] = gr.origin;
+            (y0 / 8, x0 / 8, y0, x0)
+        });
+        if !groups.is_empty() && self.near.is_none() {
+            self.near = Some(Near::new(g));
+        }
+        let (sv, smo, ss, sm) = self.sweep(exact, pixels, &groups, signatures);
+        for (j, i) in groups.iter().flat_map(|gr| gr.pixels.iter()).enumerate() {
+            values[i * k..(i + 1) * k].copy_from_slice(&sv[j * k..(j + 1) * k]);
+            moments[i * km..(i + 1) * km].copy_from_slice(&smo[j * km..(j + 1) * km]);
+            if signatures.is_some() {
+                sigs[*i] = ss[j];
+            }
+            state[*i] = 1;
+        }
+        stats.culled_pairs += sm.1;
+        counts += sm.0;
+        (stats, counts)
+    }
+
+    /// The sweeps of the groups' pixels: values, moments (with
+    /// [`Exact::directional`]) and signatures in the order of the groups and
+    /// their pixels, and what they merged and left out.
+    fn sweep(
+        &self,
+        exact: &Exact,
+        pixels: &[[i32; 2]],
+        groups: &[Group],
+        signatures: Option<f64>,
+    ) -> (Vec<f64>, Vec<f64>, Vec<u64>, (GatherCounts, u64)) {
+        let (light, g) = (exact.light, exact.geometry);
+        let k = light.rad.components;
+        let km = if exact.directional { 2 * k } else { 0 };
+        let mut start = Vec::with_capacity(groups.len() + 1);
+        start.push(0usize);
+        for gr in groups {
+            start.push(start.last().copied().unwrap_or(0) + gr.pixels.len());
+        }
+        let total = start[groups.len()];
+        let mut out = vec![0.0; total * k];
+        let mut moments = vec![0.0; total * km];
+        let mut sigs = vec![0u64; if signatures.is_some() { total } else { 0 }];
+        let mut merged = vec![[0u64; 3]; groups.len()];
+        {
+            let shared = Disjoint::new(&mut out);
+            let shared_moments = Disjoint::new(&mut moments);
+            let shared_sig = Disjoint::new(&mut sigs);
+            let shared_merged = Disjoint::new(&mut merged);
+            groups.par_iter().enumerate().for_each(|(gi, gr)| {
+                BUFFERS.with(|b| {
+                    let b = &mut *b.borrow_mut();
+                    b.list.clear();
+                    for &a in &gr.anchors {
+                        b.list.extend_from_slice(&self.seen[a]);
+                    }
+                    if let Some(near) = &self.near {
+                        b.list.extend_from_slice(near.of(gr.block[0], gr.block[1]));
+                    }
+                    b.list.sort_unstable();
+                    b.list.dedup();
+                    let mut tally = [0u64; 3];
+                    let mut acc = vec![0.0; k];
+                    let mut m = vec![0.0; km];
+                    for (j, &i) in gr.pixels.iter().enumerate() {
+                        let px = pixels[i];
+                        let p = [px[0] as f64 + 0.5, px[1] as f64 + 0.5];
+                        let comp = g.components[px[1] as usize * g.width + px[0] as usize];
+                        b.spans.clear();
+                        tally[2] += b.sweeper.sweep_wanted(
+                            &g.edges,
+                            &b.list,
+                            Viewpoint::new(p, View::Full, comp),
+                            Some(Wanted {
+                                reach2: exact.reach2,
+                                class: None,
+                            }),
+                            &mut b.spans,
+                        );
+                        acc.iter_mut().for_each(|a| *a = 0.0);
+                        let c = pixel_light(light, p, &b.spans, &mut acc, &mut b.scratch);
+                        tally[0] += c.pieces;
+                        tally[1] += c.patch_pieces;
+                        let o = start[gi] + j;
+                        for (c, &v) in acc.iter().enumerate() {
+                            // SAFETY: each output index belongs to one group's pixel.
+                            unsafe { shared.write(o * k + c, v) };
+                        }
+                        if km > 0 {
+                            m.iter_mut().for_each(|v| *v = 0.0);
+                            super::directional::pixel_moments(
+                                light, p, &b.spans, &b.scratch, &mut m,
+                            );
+                            for (c, &v) in m.iter().enumerate() {
+                                // SAFETY: as above.
+                                unsafe { shared_moments.write(o * km + c, v) };
+                            }
+                        }
+                        if let Some(rel) = signatures {
+                            let h = signature(light, &b.spans, &b.scratch, &acc, rel);
+                            // SAFETY: as above.
+                            unsafe { shared_sig.write(o, h) };
+                        }
+                    }
+                    // SAFETY: one write per group.
+                    unsafe { shared_merged.write(gi, tally) };
+                });
+                exact.done(gr.pixels.len());
+            });
+        }
+        let mut counts = GatherCounts::default();
+        let mut dropped = 0;
+        for c in &merged {
+            counts.pieces += c[0];
+            counts.patch_pieces += c[1];
+            dropped += c[2];
+        }
+        counts.local = total as u64;
+        (out, moments, sigs, (counts, dropped))
+    }
+}
+
+/// The spans of `spans` that [`Wanted`] with `reach2` would have returned
+/// from `p` (edges with light, within their reach), in `out`; the number
+/// of spans of edges with light left out.
+fn within_reach(exact: &Exact, p: [f64; 2], spans: &[Span], out: &mut Vec<Span>) -> u64 {
+    let edges = &exact.geometry.edges;
+    let mut dropped = 0;
+    out.clear();
+    for s in spans {
+        let r2 = exact.reach2[s.edge as usize];
+        if r2 >= 0.0 && edges[s.edge as usize].distance_sq(p) <= r2 {
+            out.push(*s);
+        } else if r2 >= 0.0 {
+            dropped += 1;
+        }
+    }
+    dropped
+}
+
+/// What [`Exact::run`] returns for `pixels`, with, per pixel, every edge it
+/// sees (lit or not, sorted), and the number of spans out of reach. The
+/// light is `Exact::run`'s: the query returns every visible span and those
+/// out of reach are left out here instead of in the query.
+fn run_recording(
+    exact: &Exact,
+    pixels: &[[i32; 2]],
+    signatures: Option<f64>,
+) -> (super::fast::Pass, Vec<Vec<u32>>, u64) {
+    let (light, rad) = (exact.light, exact.light.rad);
+    let k = rad.components;
+    let km = if exact.directional { 2 * k } else { 0 };
+    let mut out = vec![0.0; pixels.len() * k];
+    let mut moments = vec![0.0; pixels.len() * km];
+    let mut sigs = vec![
+        0u64;
+        if signatures.is_some() {
+            pixels.len()
+        } else {
+            0
+        }
+    ];
+    let mut seen: Vec<Vec<u32>> = vec![Vec::new(); pixels.len()];
+    let mut merged = vec![[0u32; 3]; pixels.len()];
+    let pos: Vec<[f64; 2]> = pixels
+        .iter()
+        .map(|p| [p[0] as f64 + 0.5, p[1] as f64 + 0.5])
+        .collect();
+    {
+        let (shared, shared_sig) = (Disjoint::new(&mut out), Disjoint::new(&mut sigs));
+        let shared_moments = Disjoint::new(&mut moments);
+        let (shared_seen, shared_merged) = (Disjoint::new(&mut seen), Disjoint::new(&mut merged));
+        crate::visibility::for_each_visibility_counted(
+            exact.geometry,
+            &pos,
+            pixels,
+            &|_| View::Full,
+            exact.reach_max,
+            None,
+            &|_| {},
+            &|i, spans| {
+                let mut edges: Vec<u32> = spans.iter().map(|s| s.edge).collect();
+                edges.sort_unstable();
+                edges.dedup();
+                edges.shrink_to_fit();
+                let mut acc = vec![0.0; k];
+                let mut m = vec![0.0; km];
+                let (c, sig, dropped) = BUFFERS.with(|b| {
+                    let b = &mut *b.borrow_mut();
+                    let dropped = within_reach(exact, pos[i], spans, &mut b.lit);
+                    let c = pixel_light(light, pos[i], &b.lit, &mut acc, &mut b.scratch);
+                    if km > 0 {
+                        super::directional::pixel_moments(
+                            light, pos[i], &b.lit, &b.scratch, &mut m,
+                        );
+                    }
+                    let sig = signatures.map(|rel| signature(light, &b.lit, &b.scratch, &acc, rel));
+                    (c, sig, dropped)
+                });
+                let c = [c.pieces, c.patch_pieces, dropped].map(|v| v.min(u32::MAX as u64) as u32);
+                // SAFETY: each pixel index is visited exactly once.
+                unsafe {
+                    shared_merged.write(i, c);
+                    shared_seen.write(i, edges);
+                    for (c, &v) in acc.iter().enumerate() {
+                        shared.write(i * k + c, v);
+                    }
+                    for (c, &v) in m.iter().enumerate() {
+                        shared_moments.write(i * km + c, v);
+                    }
+                    if let Some(h) = sig {
+                        shared_sig.write(i, h);
+                    }
+                }
+            },
+        );
+    }
+    let mut counts = GatherCounts::default();
+    let mut dropped = 0;
+    for c in &merged {
+        counts.pieces += c[0] as u64;
+        counts.patch_pieces += c[1] as u64;
+        dropped += c[2] as u64;
+    }
+    let pass = super::fast::Pass {
+        values: out,
+        moments,
+        signature: sigs,
+        stats: VisitStats::default(),
+        counts,
+    };
+    (pass, seen, dropped)
+}

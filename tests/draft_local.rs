@@ -1,0 +1,147 @@
+//! `draft`'s shortcuts against the same preset gathered exactly at every
+//! pixel: the interpolated lattice and the block-local sweeps
+//! (gather/local.rs) must stay within a few percent, and a pixel beside a
+//! wall must never see through it.
+
+mod common;
+use common::*;
+
+use flatbake_core::bake::{Baked, Settings, bake};
+use flatbake_core::level::{Cell, Level};
+use flatbake_core::quality::Quality;
+
+fn quiet(_: &str) {}
+
+/// A room full of pillars and thin walls, lit by three small lights: most
+/// lattice cells are crossed by shadow lines, so most pixels are swept.
+fn pillared_room() -> Level {
+    let (w, h) = (72, 44);
+    let mut rows = room(w, h);
+    let mut put = |x: usize, y: usize, c: char| rows[y].replace_range(x..x + 1, &c.to_string());
+    for (i, (x, y)) in [
+        (9, 7),
+        (21, 30),
+        (33, 12),
+        (46, 27),
+        (58, 9),
+        (61, 34),
+        (15, 20),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let side = 1 + i % 3;
+        for dy in 0..side {
+            for dx in 0..side {
+                put(x + dx, y + dy, '#');
+            }
+        }
+    }
+    // A thin wall with a door: pixels beside it must not see through it.
+    for y in 4..h - 4 {
+        if !(18..22).contains(&y) {
+            put(40, y, '#');
+        }
+    }
+    for (x, y) in [(6, 30), (28, 5), (52, 20)] {
+        for dy in 0..2 {
+            for dx in 0..2 {
+                put(x + dx, y + dy, 'L');
+            }
+        }
+    }
+    let rows = refs(&rows);
+    ascii(&rows, &[('#', wall(0.6)), ('L', light(4.0, 0.3))])
+}
+
+fn red(b: &Baked, lvl: &Level) -> Vec<Option<f64>> {
+    lvl.cells
+        .iter()
+        .zip(&b.lightmap.rgb)
+        .map(|(c, v)| (*c == Cell::Floor).then_some(v[0] as f64))
+        .collect()
+}
+
+#[test]
+fn draft_sweeps_stay_close_to_the_exact_draft_gather() {
+    let lvl = pillared_room();
+    let fast = bake(&lvl, &Settings::new(Quality::Draft), &quiet).unwrap();
+    let mut s = Settings::new(Quality::Draft);
+    s.knobs.lattice = None;
+    let exact = bake(&lvl, &s, &quiet).unwrap();
+    // The sweeps ran, and the report says so.
+    let swept = fast
+        .report
+        .skipped
+        .iter()
+        .find(|k| k.reason.contains("gathered with a sweep"))
+        .expect("the report names the swept pixels");
+    let n: usize = swept.reason.split(' ').next().unwrap().parse().unwrap();
+    assert!(n > 500, "only {n} pixels swept: {}", swept.reason);
+    let (a, b) = (red(&fast, &lvl), red(&exact, &lvl));
+    let top = b.iter().flatten().copied().fold(0.0, f64::max);
+    assert!(top > 0.0);
+    let (mut sq, mut norm, mut worst) = (0.0, 0.0, (0.0, 0));
+    for (i, (x, y)) in a.iter().zip(&b).enumerate() {
+        let (Some(x), Some(y)) = (x, y) else { continue };
+        sq += (x - y) * (x - y);
+        norm += y * y;
+        let d = (x - y).abs() / top;
+        if d > worst.0 {
+            worst = (d, i);
+        }
+    }
+    let rms = (sq / norm).sqrt();
+    if std::env::var_os("DRAFT_DEBUG").is_some() {
+        let w = lvl.width;
+        let mut v: Vec<(f64, usize, f64, f64)> = a
+            .iter()
+            .zip(&b)
+            .enumerate()
+            .filter_map(|(i, (x, y))| {
+                Some(((x.as_ref()? - y.as_ref()?).abs() / top, i, (*x)?, (*y)?))
+            })
+            .collect();
+        v.sort_by(|p, q| q.0.total_cmp(&p.0));
+        for (d, i, x, y) in v.iter().take(40) {
+            eprintln!(
+                "({}, {}) draft {x:.4} exact {y:.4} off {d:.4}",
+                i % w,
+                i / w
+            );
+        }
+        for y in 0..lvl.height {
+            let row: String = (0..w)
+                .map(|x| {
+                    let i = y * w + x;
+                    match (a[i], b[i]) {
+                        (Some(p), Some(q)) => {
+                            let d = (p - q).abs() / top;
+                            if d > 0.02 {
+                                '@'
+                            } else if d > 0.005 {
+                                '+'
+                            } else if d > 1e-6 {
+                                '.'
+                            } else {
+                                ' '
+                            }
+                        }
+                        _ => '#',
+                    }
+                })
+                .collect();
+            eprintln!("{row}");
+        }
+    }
+    // Interpolation is within 2 % of a cell's corners; the sweeps are exact
+    // wherever the block's list holds what the pixel sees. A pixel seeing
+    // through a wall would be off by a good part of the brightest light.
+    assert!(rms < 0.01, "relative RMS {rms}");
+    assert!(
+        worst.0 < 0.05,
+        "pixel {} off by {} of the brightest light",
+        worst.1,
+        worst.0
+    );
+}
