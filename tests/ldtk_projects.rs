@@ -555,3 +555,69 @@ fn a_broken_project_is_an_error_never_a_panic() {
         );
     }
 }
+
+/// Level fields `flatbake_falloff`, `flatbake_bounces` and
+/// `flatbake_exposure` are that level's `[bake]` settings; a bad one names
+/// the project, the level and the field.
+#[test]
+fn level_fields_carry_the_bake_settings() {
+    let number = |level: &mut Value, k: &str, v: f64| {
+        level["fieldInstances"].as_array_mut().unwrap().push(
+            json!({"__identifier": k, "__type": "Float", "__value": v, "__tile": null, "defUid": 9001, "realEditorValues": []}),
+        );
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let project = glowing_project(dir.path());
+    let rel = format!("{SEPARATE}/World_Level_1.ldtkl");
+    let mut l = read_json(&dir.path().join(&rel));
+    number(&mut l, "flatbake_falloff", 9.0);
+    number(&mut l, "flatbake_bounces", 2.0);
+    number(&mut l, "flatbake_exposure", 0.5);
+    std::fs::write(
+        dir.path().join(&rel),
+        serde_json::to_vec_pretty(&l).unwrap(),
+    )
+    .unwrap();
+    let levels = flatbake_core::level::ldtk::project_levels(&project).unwrap();
+    let one = levels
+        .iter()
+        .find(|p| p.to_string_lossy().ends_with("World_Level_1"))
+        .unwrap();
+    let opts = BatchOptions {
+        out_dir: dir.path().join("out"),
+        quality: Quality::Draft,
+        ..BatchOptions::default()
+    };
+    let report = batch::bake_one(one, &opts, &batch::Silent).unwrap();
+    assert_eq!(
+        (report.falloff, report.bounces, report.exposure),
+        (Some(9.0), Some(2), 0.5)
+    );
+    // The other levels keep the defaults.
+    let zero = levels
+        .iter()
+        .find(|p| p.to_string_lossy().ends_with("World_Level_0"))
+        .unwrap();
+    let report = batch::bake_one(zero, &opts, &batch::Silent).unwrap();
+    assert_eq!((report.falloff, report.bounces), (None, None));
+
+    for f in l["fieldInstances"].as_array_mut().unwrap() {
+        if f["__identifier"] == "flatbake_bounces" {
+            f["__value"] = json!(2.5);
+        }
+    }
+    std::fs::write(
+        dir.path().join(&rel),
+        serde_json::to_vec_pretty(&l).unwrap(),
+    )
+    .unwrap();
+    let e = batch::bake_one(one, &opts, &batch::Silent)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains(&*project.to_string_lossy())
+            && e.contains("World_Level_1")
+            && e.contains("field flatbake_bounces"),
+        "{e}"
+    );
+}

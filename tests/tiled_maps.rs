@@ -151,3 +151,64 @@ fn a_folder_with_an_image_and_a_map_bakes_both_and_a_tileset_edit_re_bakes_the_m
     assert!(said(&third, "up to date", "painted.png"), "{third}");
     assert!(said(&third, "baked", "room.tmx"), "{third}");
 }
+
+/// Map properties `flatbake_falloff`, `flatbake_bounces` and
+/// `flatbake_exposure` are the map's `[bake]` settings: they reach the
+/// bake, a command-line flag still wins, and a bad value names the map and
+/// the property.
+#[test]
+fn map_properties_carry_the_bake_settings() {
+    use flatbake_core::batch::{self, BatchOptions};
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::copy("tests/fixtures/tiled/room.tsx", dir.path().join("room.tsx")).unwrap();
+    let tmx = std::fs::read_to_string("tests/fixtures/tiled/room.tmx").unwrap();
+    let with = |props: &str| {
+        let (head, rest) = tmx.split_once('\n').unwrap();
+        let (map, rest) = rest.split_once('\n').unwrap();
+        let text = format!("{head}\n{map}\n <properties>\n{props} </properties>\n{rest}");
+        let path = dir.path().join("room.tmx");
+        std::fs::write(&path, text).unwrap();
+        path
+    };
+    let path = with(
+        "  <property name=\"flatbake_falloff\" type=\"float\" value=\"12.5\"/>\n  \
+         <property name=\"flatbake_bounces\" type=\"int\" value=\"1\"/>\n  \
+         <property name=\"flatbake_exposure\" type=\"float\" value=\"0.25\"/>\n",
+    );
+    let s = flatbake_core::level::map_settings(&path).unwrap();
+    assert_eq!(
+        (s.falloff, s.bounces, s.exposure),
+        (Some(12.5), Some(1), Some(0.25))
+    );
+    let mut opts = BatchOptions {
+        out_dir: dir.path().join("out"),
+        quality: flatbake_core::quality::Quality::Draft,
+        ..BatchOptions::default()
+    };
+    let report = batch::bake_one(&path, &opts, &batch::Silent).unwrap();
+    assert_eq!(
+        (report.falloff, report.bounces, report.exposure),
+        (Some(12.5), Some(1), 0.25)
+    );
+    opts.falloff = Some(Some(30.0));
+    opts.force = true;
+    let report = batch::bake_one(&path, &opts, &batch::Silent).unwrap();
+    assert_eq!(report.falloff, Some(30.0), "the flag beats the map");
+
+    let path = with("  <property name=\"flatbake_falloff\" type=\"float\" value=\"-3\"/>\n");
+    let e = batch::bake_one(&path, &opts, &batch::Silent)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("room.tmx") && e.contains("map property flatbake_falloff") && e.contains("-3"),
+        "{e}"
+    );
+    let path = with("  <property name=\"flatbake_bounces\" type=\"string\" value=\"lots\"/>\n");
+    let e = flatbake_core::level::map_settings(&path)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("flatbake_bounces") && e.contains("not a number"),
+        "{e}"
+    );
+}

@@ -597,7 +597,9 @@ pub fn bake_one(path: &Path, opts: &BatchOptions, observer: &dyn Observer) -> Re
         });
     }
     let t = Instant::now();
-    let palette = Palette::resolve_for_level(path, opts.palette.as_deref())?;
+    let mut palette = Palette::resolve_for_level(path, opts.palette.as_deref())?;
+    // A map's own properties or fields beat its palette file's `[bake]`.
+    palette.settings = level::map_settings(path)?.over(&palette.settings);
     let level = level::load_level(path, &palette, opts.limits)?;
     // What the stamp and cache record; hashed right after loading.
     let fingerprint = opts.fingerprint();

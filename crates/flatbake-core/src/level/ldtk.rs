@@ -40,8 +40,9 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
-use crate::level::map_grid::{Canvas, Kind, Spec, parse_rgb};
+use crate::level::map_grid::{self, Canvas, Kind, Spec, parse_rgb};
 use crate::level::material::Rgb;
+use crate::level::palette::PaletteSettings;
 use crate::level::{Level, LevelError, LoadLimits};
 use crate::output::names;
 
@@ -427,6 +428,28 @@ fn conventional(identifier: &str) -> Option<&'static str> {
         "floor" => Some("floor"),
         _ => None,
     }
+}
+
+/// The `[bake]` settings the level's fields `flatbake_falloff`,
+/// `flatbake_bounces` and `flatbake_exposure` give (over the palette's, under
+/// the command line's); none for a path that is not one level of a project.
+pub fn ldtk_settings(path: &Path) -> Result<PaletteSettings, LevelError> {
+    let mut s = PaletteSettings::default();
+    let Some((project, id)) = project_level(path) else {
+        return Ok(s);
+    };
+    let (_, level) = read_level(project, id)?;
+    for key in map_grid::BAKE_KEYS {
+        let Some(v) = field(&level.field_instances, key) else {
+            continue;
+        };
+        let place = format!("level {id:?}, field {key}");
+        let value = v
+            .as_f64()
+            .ok_or_else(|| err(project, place.clone(), format!("{v} is not a number")))?;
+        map_grid::bake_setting(&mut s, key, value).map_err(|e| err(project, place, e))?;
+    }
+    Ok(s)
 }
 
 /// Loads the level at `path` (`PROJECT.ldtk/LEVEL`), named `PROJECT.LEVEL`.

@@ -7,7 +7,7 @@
 use std::collections::HashMap;
 
 use crate::level::material::{Material, MaterialKind, Rgb, linear_to_srgb, srgb_to_linear};
-use crate::level::palette::MAX_EMISSION;
+use crate::level::palette::{MAX_EMISSION, PaletteSettings};
 use crate::level::{Cell, Level};
 
 /// What one map cell or shape is.
@@ -33,6 +33,43 @@ pub(crate) struct Spec {
     pub albedo: Option<Rgb>,
     /// Light group, for layers.
     pub group: Option<String>,
+}
+
+/// The map properties (Tiled) and level fields (LDtk) that carry a
+/// palette's `[bake]` settings.
+pub(crate) const BAKE_KEYS: [&str; 3] =
+    ["flatbake_falloff", "flatbake_bounces", "flatbake_exposure"];
+
+/// Sets the `[bake]` setting that map property or level field `key` names
+/// to `value`, checked as the palette file checks it.
+pub(crate) fn bake_setting(s: &mut PaletteSettings, key: &str, value: f64) -> Result<(), String> {
+    match key {
+        "flatbake_falloff" => {
+            if !value.is_finite() || value <= 0.0 {
+                return Err(format!(
+                    "falloff {value} must be a finite number of pixels > 0"
+                ));
+            }
+            s.falloff = Some(value);
+        }
+        "flatbake_exposure" => {
+            if !value.is_finite() || value <= 0.0 {
+                return Err(format!("exposure {value} must be a finite number > 0"));
+            }
+            s.exposure = Some(value);
+        }
+        "flatbake_bounces" => {
+            let max = crate::bake::MAX_BOUNCES;
+            if value.fract() != 0.0 || !(0.0..=max as f64).contains(&value) {
+                return Err(format!(
+                    "bounces {value} must be a whole number from 0 to {max} (leave it out for the full solve)"
+                ));
+            }
+            s.bounces = Some(value as u32);
+        }
+        _ => return Err(format!("{key} is not a bake setting")),
+    }
+    Ok(())
 }
 
 /// Parses one number or three (`"0.7"`, `"0.7 0.1 0.1"`, `"[0.7, 0.1, 0.1]"`,

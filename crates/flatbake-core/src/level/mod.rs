@@ -259,6 +259,19 @@ pub fn dependencies(path: &Path) -> Vec<PathBuf> {
     ldtk::level_file(path).into_iter().collect()
 }
 
+/// The `[bake]` settings a map itself gives (Tiled map properties, LDtk
+/// level fields `flatbake_falloff`, `flatbake_bounces`, `flatbake_exposure`);
+/// none for an image.
+pub fn map_settings(path: &Path) -> Result<palette::PaletteSettings, LevelError> {
+    if tiled_map::is_tiled_map(path) {
+        return tiled_map::tiled_settings(path);
+    }
+    if ldtk::project_level(path).is_some() {
+        return ldtk::ldtk_settings(path);
+    }
+    Ok(Default::default())
+}
+
 /// Loads a level image and classifies its pixels with `palette`.
 ///
 /// The level is named after the file stem (`cave.png` is `cave`).

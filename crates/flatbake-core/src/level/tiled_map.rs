@@ -20,8 +20,9 @@ use std::path::{Path, PathBuf};
 
 use tiled::{LayerType, ObjectShape, PropertyValue, TileLayer};
 
-use crate::level::map_grid::{Canvas, Kind, Spec, parse_rgb};
+use crate::level::map_grid::{self, Canvas, Kind, Spec, parse_rgb};
 use crate::level::material::Rgb;
+use crate::level::palette::PaletteSettings;
 use crate::level::{Level, LevelError, LoadLimits};
 
 /// A Tiled map problem, located in the map.
@@ -102,6 +103,33 @@ pub fn tiled_dependencies(path: &Path) -> Vec<PathBuf> {
     out.sort();
     out.dedup();
     out
+}
+
+/// The `[bake]` settings the map's properties `flatbake_falloff`,
+/// `flatbake_bounces` and `flatbake_exposure` give (over the palette's, under
+/// the command line's).
+pub fn tiled_settings(path: &Path) -> Result<PaletteSettings, LevelError> {
+    let map = tiled::Loader::new()
+        .load_tmx_map(path)
+        .map_err(|e| err(path, "map", format!("cannot read the Tiled map: {e}")))?;
+    let mut s = PaletteSettings::default();
+    for key in map_grid::BAKE_KEYS {
+        let value = match map.properties.get(key) {
+            None => continue,
+            Some(PropertyValue::FloatValue(f)) => *f as f64,
+            Some(PropertyValue::IntValue(n)) => *n as f64,
+            Some(other) => {
+                return Err(err(
+                    path,
+                    format!("map property {key}"),
+                    format!("{other:?} is not a number"),
+                ));
+            }
+        };
+        map_grid::bake_setting(&mut s, key, value)
+            .map_err(|e| err(path, format!("map property {key}"), e))?;
+    }
+    Ok(s)
 }
 
 /// Loads a Tiled map as a level (named after the file stem).

@@ -69,6 +69,18 @@ pub struct PaletteSettings {
     pub exposure: Option<f64>,
 }
 
+impl PaletteSettings {
+    /// These settings where they are given, `base`'s elsewhere.
+    pub fn over(&self, base: &PaletteSettings) -> PaletteSettings {
+        PaletteSettings {
+            falloff: self.falloff.or(base.falloff),
+            bounces: self.bounces.or(base.bounces),
+            tolerance: self.tolerance.or(base.tolerance),
+            exposure: self.exposure.or(base.exposure),
+        }
+    }
+}
+
 /// A resolved palette.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Palette {
