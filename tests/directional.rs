@@ -640,6 +640,19 @@ fn layers_relight_and_caches_carry_the_moments() {
         })
         .collect();
     assert_eq!(layers.len(), 2, "{layers:?}");
+    // The manifest names each group's directional file.
+    let manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("duo.layers.json")).unwrap()).unwrap();
+    let mut listed: Vec<std::path::PathBuf> = manifest["groups"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|g| out.join(g["directional_exr"].as_str().expect("directional_exr")))
+        .collect();
+    let mut found = layers.clone();
+    listed.sort();
+    found.sort();
+    assert_eq!(listed, found);
     let parts: Vec<_> = layers.into_iter().map(read).collect();
     let brightest = full["R"].iter().copied().fold(0f32, f32::max);
     let mut moving = 0;

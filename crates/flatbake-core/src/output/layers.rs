@@ -151,6 +151,10 @@ pub struct ManifestGroup {
     pub exr: String,
     /// sRGB preview of the layer (times exposure, clamped).
     pub png: String,
+    /// With `--directional`, the layer's mean and first circular moments
+    /// (`NAME.layer-TAG.directional.exr`); left out of the file otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub directional_exr: Option<String>,
 }
 
 /// An emitter colour of a group and its emission.
@@ -217,6 +221,12 @@ pub fn encode_layers(
             path: png_kind.file_name(name).into(),
             message: e.to_string(),
         })?;
+        let moments = layer_moments(r, emission, &g)
+            .map(|d| {
+                let kind = OutputKind::LayerDirectionalExr(g.file_tag.clone());
+                output::directional::moments_exr(level, &map, &d, kind)
+            })
+            .transpose()?;
         manifest.groups.push(ManifestGroup {
             name: g.name.clone(),
             emitters: g
@@ -232,6 +242,9 @@ pub fn encode_layers(
                 .collect(),
             exr: exr_kind.file_name(name),
             png: png_kind.file_name(name),
+            directional_exr: moments
+                .as_ref()
+                .map(|_| OutputKind::LayerDirectionalExr(g.file_tag.clone()).file_name(name)),
         });
         files.push(Encoded {
             kind: exr_kind,
@@ -241,10 +254,7 @@ pub fn encode_layers(
             kind: png_kind,
             bytes: png,
         });
-        if let Some(d) = layer_moments(r, emission, &g) {
-            let kind = OutputKind::LayerDirectionalExr(g.file_tag.clone());
-            files.push(output::directional::moments_exr(level, &map, &d, kind)?);
-        }
+        files.extend(moments);
     }
     let kind = OutputKind::LayersManifest;
     let mut json = serde_json::to_vec_pretty(&manifest).map_err(|e| OutputError::Encode {
