@@ -15,7 +15,7 @@ use std::path::Path;
 use ::image::DynamicImage;
 
 use super::files::describe_io;
-use super::{Encoded, OutputError, OutputKind, OutputOptions, encode_png, image};
+use super::{Encoded, OutputError, OutputKind, OutputOptions, image};
 use crate::bake::{Directional, Lightmap};
 use crate::level::{Cell, Level};
 
@@ -165,17 +165,7 @@ pub fn encode_directional(
     let mean = image::hdr_pixels(level, map)?;
     let n = level.width * level.height;
     let floor = |i: usize| level.cells[i] == Cell::Floor;
-    let png = |kind: OutputKind, img: &DynamicImage| {
-        encode_png(img)
-            .map(|bytes| Encoded {
-                kind: kind.clone(),
-                bytes,
-            })
-            .map_err(|e| OutputError::Encode {
-                path: kind.file_name(name).into(),
-                message: e.to_string(),
-            })
-    };
+    let png = |kind: OutputKind, img: &DynamicImage| super::encoded_png(name, kind, img);
     let (w, h) = (level.width as u32, level.height as u32);
     let preview = ::image::RgbImage::from_fn(w, h, |x, y| {
         let i = y as usize * level.width + x as usize;

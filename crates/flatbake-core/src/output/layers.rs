@@ -81,9 +81,9 @@ pub fn palette_emission(level: &Level, r: &Responses) -> Vec<[f64; 3]> {
         .collect()
 }
 
-/// The lightmap of one group: the other emitters switched off.
-pub fn layer(r: &Responses, emission: &[[f64; 3]], group: &Group) -> Lightmap {
-    let only: Vec<[f64; 3]> = emission
+/// `emission` with every emitter outside `group` switched off.
+fn group_emission(emission: &[[f64; 3]], group: &Group) -> Vec<[f64; 3]> {
+    emission
         .iter()
         .enumerate()
         .map(|(i, e)| {
@@ -93,7 +93,12 @@ pub fn layer(r: &Responses, emission: &[[f64; 3]], group: &Group) -> Lightmap {
                 [0.0; 3]
             }
         })
-        .collect();
+        .collect()
+}
+
+/// The lightmap of one group: the other emitters switched off.
+pub fn layer(r: &Responses, emission: &[[f64; 3]], group: &Group) -> Lightmap {
+    let only = group_emission(emission, group);
     Lightmap {
         width: r.width,
         height: r.height,
@@ -109,17 +114,7 @@ pub fn layer_moments(
     emission: &[[f64; 3]],
     group: &Group,
 ) -> Option<crate::bake::Directional> {
-    let only: Vec<[f64; 3]> = emission
-        .iter()
-        .enumerate()
-        .map(|(i, e)| {
-            if group.emitters.contains(&i) {
-                *e
-            } else {
-                [0.0; 3]
-            }
-        })
-        .collect();
+    let only = group_emission(emission, group);
     r.combine_moments(&only)
 }
 

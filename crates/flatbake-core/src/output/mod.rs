@@ -116,6 +116,24 @@ pub struct Encoded {
     pub bytes: Vec<u8>,
 }
 
+/// `img` as a PNG output of `kind` for level `name`; an encoder failure
+/// names the file.
+pub(crate) fn encoded_png(
+    name: &str,
+    kind: OutputKind,
+    img: &DynamicImage,
+) -> Result<Encoded, OutputError> {
+    encode_png(img)
+        .map(|bytes| Encoded {
+            kind: kind.clone(),
+            bytes,
+        })
+        .map_err(|e| OutputError::Encode {
+            path: kind.file_name(name).into(),
+            message: e.to_string(),
+        })
+}
+
 /// Encodes the image outputs of one level in memory, in writing order:
 /// `NAME.lightmap.png`, `NAME.lit.png`, with `opts.hdr` `NAME.lightmap.exr`,
 /// with `opts.ktx2` `NAME.lightmap.ktx2`, with `opts.rgbm`
@@ -129,17 +147,7 @@ pub fn encode_images(
 ) -> Result<Vec<Encoded>, OutputError> {
     image::check_sizes(level, map)?;
     let name = &level.name;
-    let png = |kind: OutputKind, img: &DynamicImage| {
-        encode_png(img)
-            .map(|bytes| Encoded {
-                kind: kind.clone(),
-                bytes,
-            })
-            .map_err(|e| OutputError::Encode {
-                path: kind.file_name(name).into(),
-                message: e.to_string(),
-            })
-    };
+    let png = |kind: OutputKind, img: &DynamicImage| encoded_png(name, kind, img);
     let padded = if opts.padding > 0 {
         Some(padded_hdr_pixels(level, map, opts.padding)?)
     } else {

@@ -618,11 +618,16 @@ pub fn gauss_legendre(n: usize) -> (&'static [f64], &'static [f64]) {
 }
 
 #[cfg(test)]
-mod tests {
+pub(in crate::transport) mod tests {
     use super::*;
 
     /// Midpoint-rule integral of `f` over `[t0, t1]` in `psi`, for checking.
-    fn numeric(d: f64, t0: f64, t1: f64, f: impl Fn(f64, f64) -> f64) -> f64 {
+    pub(in crate::transport) fn numeric(
+        d: f64,
+        t0: f64,
+        t1: f64,
+        f: impl Fn(f64, f64) -> f64,
+    ) -> f64 {
         let (p0, p1) = ((t0 / d).atan(), (t1 / d).atan());
         let n = 200_000;
         let h = (p1 - p0) / n as f64;

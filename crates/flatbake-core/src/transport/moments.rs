@@ -123,16 +123,7 @@ pub fn to_level(normal: crate::geometry::Normal, along_n: f64, along_axis: f64) 
 mod tests {
     use super::*;
 
-    /// Midpoint rule in `psi` of `f(psi, r)`, for checking.
-    fn numeric(d: f64, t0: f64, t1: f64, f: impl Fn(f64, f64) -> f64) -> f64 {
-        let (p0, p1) = ((t0 / d).atan(), (t1 / d).atan());
-        let n = 200_000;
-        let h = (p1 - p0) / n as f64;
-        (0..n)
-            .map(|i| p0 + (i as f64 + 0.5) * h)
-            .map(|psi| f(psi, d / psi.cos()) * h)
-            .sum()
-    }
+    use crate::transport::kernel::tests::numeric;
 
     #[test]
     fn moment_closed_forms_match_quadrature() {
