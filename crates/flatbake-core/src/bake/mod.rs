@@ -117,6 +117,9 @@ pub struct Settings {
     /// ([`Directional`]), for normal-mapped sprites. The flatland kernel and
     /// the fast gather only. Default off; off costs nothing.
     pub directional: bool,
+    /// Bake pixels per painted pixel: 1, or the upscale factor of a texel
+    /// bake ([`texels`]), which sizes visibility's blocks in painted pixels.
+    pub unit: usize,
 }
 
 impl Settings {
@@ -134,6 +137,7 @@ impl Settings {
             exhaustive: false,
             max_memory: None,
             directional: false,
+            unit: 1,
         }
     }
 }
@@ -362,7 +366,8 @@ pub fn bake_with_progress(
 
     progress("geometry");
     let t = Instant::now();
-    let scene = Scene::new(level, settings.knobs.patch_len, settings.exhaustive);
+    let mut scene = Scene::new(level, settings.knobs.patch_len, settings.exhaustive);
+    scene.geometry.unit = settings.unit.max(1);
     timed(&mut timings.geometry, t);
 
     let mut plan = Plan::new(&ctx, &scene, &mut log);

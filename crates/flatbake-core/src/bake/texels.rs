@@ -263,6 +263,7 @@ pub fn scaled_settings(settings: &Settings, k: usize) -> Settings {
     let mut s = settings.clone();
     s.knobs.patch_len *= k as f64;
     s.falloff = settings.falloff.map(|f| f * k as f64);
+    s.unit = settings.unit.max(1) * k;
     s
 }
 

@@ -225,6 +225,10 @@ pub struct Geometry {
     pub components: Vec<u32>,
     /// Number of free-space components.
     pub component_count: u32,
+    /// Pixels per painted pixel: 1, or the upscale factor of a texel bake.
+    /// Visibility's blocks are [`crate::visibility::Blocks::SIZE`] painted
+    /// pixels, so a finer bake does not walk more of them per point.
+    pub unit: usize,
 }
 
 impl Geometry {
@@ -286,6 +290,7 @@ pub fn trace(level: &Level) -> Geometry {
         runs,
         components,
         component_count,
+        unit: 1,
     }
 }
 

@@ -236,12 +236,12 @@ pub struct Blocks<'g> {
 }
 
 impl<'g> Blocks<'g> {
-    /// Side of a block in pixels.
+    /// Side of a block in painted pixels (times [`Geometry::unit`] in pixels).
     pub const SIZE: i32 = 8;
 
     /// Bins the edges of `g`.
     pub fn new(g: &'g Geometry) -> Blocks<'g> {
-        let size = Self::SIZE;
+        let size = Self::SIZE * g.unit.max(1) as i32;
         let nx = g.width.div_ceil(size as usize).max(1);
         let ny = g.height.div_ceil(size as usize).max(1);
         let blocks_of = |e: &Edge| {
