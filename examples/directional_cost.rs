@@ -26,7 +26,7 @@ fn main() -> anyhow::Result<()> {
     let dir = tempfile::tempdir()?;
     let mut levels: Vec<(String, PathBuf)> =
         vec![("big_level".into(), "levels/big_level.png".into())];
-    // The classes as `synth::issue_classes` makes them.
+    // The classes as `synth::hard_classes` makes them.
     for (label, level) in [
         ("noise 0.3", synth::noise(512, 0.3, 12, 1)),
         ("checkerboard, 4 rooms", synth::checkerboard(512, 4, 1)),

@@ -18,8 +18,8 @@
 //!   on each patch, 8 and 64 of them). All are compared with the `reference`
 //!   bake, so each ratio is stated with both errors.
 //!
-//! * Level classes: every class of `synth::issue_classes` (the level kinds of
-//!   the issue "Fast on every level, not only on the benchmark": a shooter
+//! * Level classes: every class of `synth::hard_classes` (the level kinds that
+//!   cost most, timed against the speed targets: a shooter
 //!   map, a courtyard map, pillar and light fields, checkerboards, wall
 //!   noise, corridors, dots, the 8192 px benchmark) baked by the binary at
 //!   `normal`, and the real maps at `draft` too. Each row gives s / Mpx and
@@ -352,7 +352,7 @@ fn bench_s_per_mpx(dir: &Path, bakers: &[&Baker]) -> anyhow::Result<Vec<f64>> {
     Ok(best.iter().map(|w| w / (512.0 * 512.0 / 1e6)).collect())
 }
 
-/// The "Level classes" table: every class of `flatbake_synth::issue_classes`
+/// The "Level classes" table: every class of `flatbake_synth::hard_classes`
 /// (or `small_classes(size)`) baked at `normal`, and the real maps also at
 /// `draft`, with `after` (and `before`, interleaved, when given).
 fn classes_table(
@@ -365,7 +365,7 @@ fn classes_table(
 ) -> anyhow::Result<()> {
     let classes = match small {
         Some(s) => synth::small_classes(s),
-        None => synth::issue_classes(),
+        None => synth::hard_classes(),
     };
     let classes: Vec<_> = classes
         .into_iter()

@@ -10,9 +10,9 @@
 //! `bench_obstacles_SIZE` (60 obstacles, 12 lights, falloff SIZE / 12) for
 //! each SIZE (default 512), and `bench_scattered_64`.
 //!
-//! `--classes` writes instead every level class of the issue "Fast on every
-//! level, not only on the benchmark" at the size the issue measured it
-//! (`flatbake_synth::issue_classes`, the 8192 px benchmark included), and
+//! `--classes` writes instead every level class of the speed targets
+//! (docs/performance.md) at the size it was first timed at
+//! (`flatbake_synth::hard_classes`, the 8192 px benchmark included), and
 //! `--classes-small SIZE` the same scenes about SIZE px across
 //! (`small_classes`), for `flatbake sweep OUT_DIR`. Both print each level's
 //! size, traced edges, free regions and light pixels.
@@ -65,7 +65,7 @@ fn main() -> anyhow::Result<()> {
     let out = PathBuf::from(args.next().ok_or_else(usage)?);
     let rest: Vec<String> = args.collect();
     match rest.first().map(String::as_str) {
-        Some("--classes") => return save_classes(&out, &synth::issue_classes()),
+        Some("--classes") => return save_classes(&out, &synth::hard_classes()),
         Some("--classes-small") => {
             let size = rest.get(1).and_then(|v| v.parse().ok()).ok_or_else(usage)?;
             return save_classes(&out, &synth::small_classes(size));

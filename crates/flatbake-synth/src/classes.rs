@@ -1,5 +1,5 @@
 //! The classes of level that cost a bake the most, as generators: the
-//! yardsticks of the issue "Fast on every level, not only on the benchmark".
+//! yardsticks of the speed targets in docs/performance.md.
 //!
 //! The 512 px benchmark ([`bench_obstacles`](crate::bench_obstacles)) is one
 //! open room with a few hundred edges. Real levels and adversarial ones are
@@ -11,7 +11,7 @@
 //! and paints pixels plus palette the way the sample generators do (floors
 //! kept clear of wall and emitter colours by [`Painted::new`]).
 //!
-//! [`issue_classes`] lists every class at the size the issue measured it,
+//! [`hard_classes`] lists every class at the size it was first timed at,
 //! [`small_classes`] the same scenes small enough for `flatbake sweep`.
 
 use crate::{
@@ -247,7 +247,7 @@ fn light_side(k: f64) -> i32 {
 // ---------------------------------------------------------------------------
 // Real maps
 
-/// A top-down shooter map, `w` x `h` px (the issue measured 1025 x 838): one
+/// A top-down shooter map, `w` x `h` px (first timed at 1025 x 838): one
 /// building inside a 4 px outer wall, split by shared 2-4 px walls into
 /// rooms and long corridors 10-18 px wide (scaled with the map), doorways
 /// between neighbours, crates and low cover walls in every room, and small
@@ -350,7 +350,7 @@ pub fn shooter_map(w: usize, h: usize, seed: u64) -> Painted {
     Painted::new("shooter_map", c, &pal)
 }
 
-/// A map around one huge open courtyard, `w` x `h` px (the issue measured
+/// A map around one huge open courtyard, `w` x `h` px (first timed at
 /// about 610 x 641): a ring of buildings (rooms behind shared walls, with
 /// doorways to each other and onto the yard) inside a 3 px outer wall, and
 /// in the middle a walled courtyard over half the map wide with a round
@@ -534,8 +534,8 @@ fn enclosed_field(
 /// A field of `pillars` one-pixel pillars, `size` x `size` px inside an
 /// enclosing wall, lit by `lights` small square lights (2 x 2 px at 512).
 /// No two pillars touch, even at a corner, so each is its own loop of four
-/// unit edges. The palette sets the benchmark's falloff, `size / 12`. The
-/// issue measured 512 px with 5,000 pillars and 12 lights (about 20,000
+/// unit edges. The palette sets the benchmark's falloff, `size / 12`. First
+/// timed at 512 px with 5,000 pillars and 12 lights (about 20,000
 /// edges).
 ///
 /// Class: the benchmark scene with its obstacles shattered into thousands of
@@ -576,7 +576,7 @@ pub fn pillar_field(size: usize, pillars: usize, lights: usize, seed: u64) -> Pa
 
 /// An open field, `size` x `size` px inside an enclosing wall, with
 /// nothing in it but `lights` small square lights (2 x 2 px at 512) at least
-/// 8 px apart, and the palette falloff `falloff` px. The issue measured 512
+/// 8 px apart, and the palette falloff `falloff` px. First timed at 512
 /// px, 200 lights, falloff 43.
 ///
 /// Class: many lights and few edges, where the cost is the light sources
@@ -611,7 +611,7 @@ pub fn light_field(size: usize, lights: usize, falloff: f64, seed: u64) -> Paint
 /// 32)` px) are cleared in it, each with a small light (2 x 2 px at 512) in
 /// the middle; the checkerboard pixels around a room catch its light. The
 /// palette sets the benchmark's falloff, `size / 12`. About `2 size^2`
-/// edges. The issue measured 512 px with 0 or a few rooms, and 2048 px with
+/// edges. First timed at 512 px with 0 or a few rooms, and 2048 px with
 /// 16.
 ///
 /// Class: the most edges and free regions per pixel a level can have, nearly
@@ -653,7 +653,7 @@ pub fn checkerboard(size: usize, lit_rooms: usize, seed: u64) -> Painted {
 
 /// Random one-pixel wall noise, `size` x `size` px inside an enclosing
 /// wall: each pixel is wall with probability `density` (0.1 to 0.3 in the
-/// issue), and `lights` small lights (2 x 2 px at 512) sit in cleared spots
+/// timed classes), and `lights` small lights (2 x 2 px at 512) sit in cleared spots
 /// (a pixel of floor around each). The palette sets the benchmark's
 /// falloff, `size / 12`.
 ///
@@ -863,9 +863,9 @@ fn class(label: &str, real_map: bool, level: Painted) -> Class {
     }
 }
 
-/// Every class at the size the issue measured it, cheapest first within
+/// Every class at the size it was first timed at, cheapest first within
 /// each kind; the last is the 8192 px benchmark (the pixel limit).
-pub fn issue_classes() -> Vec<Class> {
+pub fn hard_classes() -> Vec<Class> {
     vec![
         class("shooter map", true, shooter_map(1025, 838, 1)),
         class("courtyard map", true, courtyard_map(610, 641, 1)),

@@ -22,7 +22,7 @@ use std::path::Path;
 
 mod classes;
 pub use classes::{
-    Class, checkerboard, corridors, courtyard_map, dots, issue_classes, light_field, noise,
+    Class, checkerboard, corridors, courtyard_map, dots, hard_classes, light_field, noise,
     pillar_field, shooter_map, small_classes,
 };
 
