@@ -93,7 +93,7 @@ pub fn simplify_loops(geometry: &Geometry, tolerance: f64) -> Occluders {
             first_pass(&l.vertices, fixed, tolerance)
         })
         .collect();
-    resolve_crossings(&loops, &mut keep);
+    resolve_crossings(&loops, &mut keep, tolerance);
     let polygons = loops
         .iter()
         .zip(&keep)
@@ -184,7 +184,7 @@ fn first_pass(v: &[[i32; 2]], mut keep: Vec<bool>, tolerance: f64) -> Vec<bool> 
         keep[far] = true;
         fixed = (0..n).filter(|&i| keep[i]).collect();
     }
-    let mut stack: Vec<(usize, usize)> = (0..fixed.len())
+    let stack: Vec<(usize, usize)> = (0..fixed.len())
         .map(|k| {
             let i = fixed[k];
             let j = if k + 1 < fixed.len() {
@@ -195,18 +195,7 @@ fn first_pass(v: &[[i32; 2]], mut keep: Vec<bool>, tolerance: f64) -> Vec<bool> 
             (i, j)
         })
         .collect();
-    while let Some((i, j)) = stack.pop() {
-        if j <= i + 1 {
-            continue;
-        }
-        let (k, d) = farthest(v, i, j);
-        // A chord between two visits of one point always splits.
-        if d > tolerance || v[i % n] == v[j % n] {
-            keep[k % n] = true;
-            stack.push((i, k));
-            stack.push((k, j));
-        }
-    }
+    refine(v, &mut keep, stack, tolerance);
     while keep.iter().filter(|k| **k).count() < 3 {
         let kept: Vec<usize> = (0..n).filter(|&i| keep[i]).collect();
         let far = (0..n)
@@ -224,8 +213,41 @@ fn first_pass(v: &[[i32; 2]], mut keep: Vec<bool>, tolerance: f64) -> Vec<bool> 
             })
             .expect("a loop of more than three vertices has one not kept");
         keep[far] = true;
+        let ranges = ranges_around(&keep, far);
+        refine(v, &mut keep, ranges, tolerance);
     }
     keep
+}
+
+/// Douglas-Peucker on the cyclic vertex ranges `i..j` of `stack` (kept end
+/// points, `j` possibly past `v.len()`): keeps the farthest interior vertex
+/// of a range while it is more than `tolerance` off its chord, so that every
+/// vertex ends within `tolerance` of the segment that replaces it.
+fn refine(v: &[[i32; 2]], keep: &mut [bool], mut stack: Vec<(usize, usize)>, tolerance: f64) {
+    let n = v.len();
+    while let Some((i, j)) = stack.pop() {
+        if j <= i + 1 {
+            continue;
+        }
+        let (k, d) = farthest(v, i, j);
+        // A chord between two visits of one point always splits.
+        if d > tolerance || v[i % n] == v[j % n] {
+            keep[k % n] = true;
+            stack.push((i, k));
+            stack.push((k, j));
+        }
+    }
+}
+
+/// The two cyclic ranges from the kept vertex before `k` to `k` and from
+/// `k` to the kept vertex after it, as [`refine`] takes them (`k` is kept).
+fn ranges_around(keep: &[bool], k: usize) -> Vec<(usize, usize)> {
+    let n = keep.len();
+    let ahead = (1..=n).find(|&d| keep[(k + d) % n]).unwrap_or(n);
+    let back = (1..=n).find(|&d| keep[(k + n - d) % n]).unwrap_or(n);
+    // Indices may run past n but not below 0: shift k up by n if need be.
+    let k = if back > k { k + n } else { k };
+    vec![(k - back, k), (k, k + ahead)]
 }
 
 /// A simplified segment: loop, and the cyclic vertex range `i..=j` it replaces.
@@ -276,8 +298,9 @@ pub(crate) fn segments_conflict(s: ([i32; 2], [i32; 2]), t: ([i32; 2], [i32; 2])
 }
 
 /// Splits segments that cross or overlap another one at their farthest
-/// traced vertex, until none does.
-fn resolve_crossings(loops: &[&Loop], keep: &mut [Vec<bool>]) {
+/// traced vertex (simplifying its two halves again within `tolerance`),
+/// until none does.
+fn resolve_crossings(loops: &[&Loop], keep: &mut [Vec<bool>], tolerance: f64) {
     const CELL: i32 = 16;
     loop {
         let mut segs: Vec<Seg> = Vec::new();
@@ -329,8 +352,12 @@ fn resolve_crossings(loops: &[&Loop], keep: &mut [Vec<bool>]) {
         for (s, _) in segs.iter().zip(&bad).filter(|(_, b)| **b) {
             if s.j > s.i + 1 {
                 let n = loops[s.lp].vertices.len();
-                let (k, _) = farthest(&loops[s.lp].vertices, s.i, s.j);
+                let v = &loops[s.lp].vertices;
+                let (k, _) = farthest(v, s.i, s.j);
                 keep[s.lp][k % n] = true;
+                // The split's two halves need not be within the tolerance
+                // of the vertices they replace: simplify them again.
+                refine(v, &mut keep[s.lp], vec![(s.i, k), (k, s.j)], tolerance);
                 changed = true;
             }
         }
