@@ -189,6 +189,40 @@ fn entities_the_flatbake_field_names_are_emitters_of_their_shape() {
 }
 
 #[test]
+fn an_entity_definition_tagged_light_is_an_emitter_and_its_tag_is_in_the_stamp() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = all_features_with(
+        dir.path(),
+        "Everything",
+        &[("flatbake_layer", "IntGrid_with_rules")],
+        |_| {},
+    );
+    let emitters = |level: &Level| {
+        solids(level)
+            .iter()
+            .filter(|k| k.is_some_and(|k| k.0 == MaterialKind::Emitter))
+            .count()
+    };
+    let level = path.join("Everything");
+    assert_eq!(emitters(&load(&level).expect("loads")), 0);
+    let before = ldtk::level_inputs(&level).expect("inputs");
+    // Tag the RectRegion definition only: the instances' `__tags` copies
+    // stay as they were, as after a hand edit of the definition.
+    let mut p = read_json(&path);
+    let def = p["defs"]["entities"]
+        .as_array_mut()
+        .unwrap()
+        .iter_mut()
+        .find(|d| d["identifier"] == "RectRegion")
+        .expect("the fixture defines RectRegion");
+    def["tags"] = json!(["Light"]);
+    std::fs::write(&path, serde_json::to_vec_pretty(&p).unwrap()).unwrap();
+    // The fixture's RectRegion: 128 x 80 px.
+    assert_eq!(emitters(&load(&level).expect("loads")), 128 * 80);
+    assert_ne!(ldtk::level_inputs(&level).expect("inputs"), before);
+}
+
+#[test]
 fn a_light_entity_with_a_radius_is_a_disc_around_its_position() {
     let dir = tempfile::tempdir().unwrap();
     let path = all_features_with(

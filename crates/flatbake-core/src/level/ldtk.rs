@@ -108,6 +108,10 @@ struct EntityDef {
     uid: i64,
     #[serde(rename = "renderMode", default)]
     render_mode: String,
+    /// The definition's tags; instances carry a copy (`__tags`) that a
+    /// hand edit of the definition may leave behind, so both count.
+    #[serde(default)]
+    tags: Vec<String>,
 }
 
 #[derive(Debug, Deserialize, Serialize)]
@@ -662,8 +666,12 @@ pub fn load_ldtk(path: &Path, limits: LoadLimits) -> Result<Level, LevelError> {
                 None => None,
             };
             let listed = table.get(&e.identifier.to_ascii_lowercase()).cloned();
+            let def = defs.entities.iter().find(|d| d.uid == e.def_uid);
             let is_light = ["light", "lamp"].contains(&e.identifier.to_ascii_lowercase().as_str())
-                || e.tags.iter().any(|t| t.eq_ignore_ascii_case("light"));
+                || e.tags
+                    .iter()
+                    .chain(def.into_iter().flat_map(|d| &d.tags))
+                    .any(|t| t.eq_ignore_ascii_case("light"));
             let (mut spec, mut tint) = match (own, listed) {
                 (Some(k), Some(entry)) => (
                     Spec {
@@ -727,11 +735,7 @@ pub fn load_ldtk(path: &Path, limits: LoadLimits) -> Result<Level, LevelError> {
                 canvas.paint(x - r, y - r, 2.0 * r, 2.0 * r, true, &kind);
             } else {
                 let (ew, eh) = (e.width * scale, e.height * scale);
-                let ellipse = defs
-                    .entities
-                    .iter()
-                    .find(|d| d.uid == e.def_uid)
-                    .is_some_and(|d| d.render_mode == "Ellipse");
+                let ellipse = def.is_some_and(|d| d.render_mode == "Ellipse");
                 canvas.paint(
                     x - e.pivot[0] * ew,
                     y - e.pivot[1] * eh,
