@@ -223,6 +223,36 @@ fn an_entity_definition_tagged_light_is_an_emitter_and_its_tag_is_in_the_stamp()
 }
 
 #[test]
+fn a_level_without_lights_is_told_how_to_add_one_in_ldtk() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = all_features_with(
+        dir.path(),
+        "Everything",
+        &[("flatbake_layer", "IntGrid_with_rules")],
+        |_| {},
+    );
+    let out = dir.path().join("out");
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_flatbake"))
+        .args(["bake".as_ref(), path.join("Everything").as_os_str()])
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .expect("flatbake runs");
+    assert!(run.status.success(), "{run:?}");
+    let err = String::from_utf8_lossy(&run.stderr);
+    for words in [
+        "Everything",
+        "no light",
+        "tagged `light`",
+        "level field `flatbake`",
+    ] {
+        assert!(err.contains(words), "{words:?} missing from: {err}");
+    }
+    // Not the advice for painted images.
+    assert!(!err.contains("palette"), "{err}");
+}
+
+#[test]
 fn a_light_entity_with_a_radius_is_a_disc_around_its_position() {
     let dir = tempfile::tempdir().unwrap();
     let path = all_features_with(

@@ -78,6 +78,7 @@ fn level(name: &str, rows: &[&str]) -> Level {
         materials: vec![emitter()],
         warnings: vec![],
         lossy_format: None,
+        origin: Default::default(),
     }
 }
 
@@ -697,6 +698,7 @@ fn an_empty_level_is_an_error_not_a_panic() {
         materials: vec![],
         warnings: vec![],
         lossy_format: None,
+        origin: Default::default(),
     };
     let map = Lightmap {
         width: 0,

@@ -212,3 +212,31 @@ fn map_properties_carry_the_bake_settings() {
         "{e}"
     );
 }
+
+#[test]
+fn a_map_without_lights_is_told_how_to_add_one_in_tiled() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = Path::new("tests/fixtures/tiled");
+    std::fs::copy(src.join("room.tsx"), dir.path().join("room.tsx")).unwrap();
+    let tmx = std::fs::read_to_string(src.join("room.tmx")).unwrap();
+    let (head, rest) = tmx
+        .split_once(" <objectgroup")
+        .expect("the fixture has lights");
+    let tail = rest.split_once("</objectgroup>\n").expect("closed").1;
+    let map = dir.path().join("room.tmx");
+    std::fs::write(&map, format!("{head}{tail}")).unwrap();
+    let out = dir.path().join("out");
+    let run = flatbake(&["bake", s(&map), "-o", s(&out)]);
+    assert_exit(&run, EXIT_OK);
+    let err = String::from_utf8_lossy(&run.stderr);
+    for words in [
+        "room.tmx",
+        "no light",
+        "class `light`",
+        "`flatbake` = `emitter`",
+    ] {
+        assert!(err.contains(words), "{words:?} missing from: {err}");
+    }
+    // Not the advice for painted images.
+    assert!(!err.contains("palette"), "{err}");
+}

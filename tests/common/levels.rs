@@ -66,6 +66,7 @@ pub fn ascii(rows: &[&str], legend: &[(char, Material)]) -> Level {
         materials: legend.iter().map(|(_, m)| m.clone()).collect(),
         warnings: vec![],
         lossy_format: None,
+        origin: Default::default(),
     }
 }
 

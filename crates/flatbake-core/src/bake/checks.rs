@@ -8,7 +8,7 @@
 
 use super::{Log, Scene};
 use crate::level::material::MaterialKind;
-use crate::level::{Cell, Level};
+use crate::level::{Cell, Level, Origin};
 
 /// The kind of a level without floor.
 pub const NO_FLOOR: &str = "no floor";
@@ -85,6 +85,37 @@ fn no_floor(level: &Level) -> String {
     let head = "the level has no floor pixels: nothing to light";
     let n = level.cells.len();
     let (per, void) = census(level);
+    let kind_share = |kind: MaterialKind| {
+        let c: usize = level
+            .materials
+            .iter()
+            .zip(&per)
+            .filter(|(m, _)| m.kind == kind)
+            .map(|(_, n)| n)
+            .sum();
+        percent(c, n)
+    };
+    match level.origin {
+        Origin::Image => {}
+        Origin::Tiled => {
+            return format!(
+                "{head}: {} of the map is wall and {} emitter. Leave floor tiles empty, or give \
+                 their tiles the custom property `flatbake` = `floor`; check which layer is the \
+                 wall layer (the map property `flatbake_layer`, else the layer `walls`)",
+                kind_share(MaterialKind::Wall),
+                kind_share(MaterialKind::Emitter)
+            );
+        }
+        Origin::Ldtk => {
+            return format!(
+                "{head}: {} of the level is wall and {} emitter. Leave floor cells empty in the \
+                 IntGrid layer, or name their value `floor`; check which IntGrid layer is read \
+                 (the level field `flatbake_layer`) and that no entity covers the level",
+                kind_share(MaterialKind::Wall),
+                kind_share(MaterialKind::Emitter)
+            );
+        }
+    }
     let top = per
         .iter()
         .enumerate()
@@ -137,6 +168,31 @@ fn no_light(level: &Level) -> String {
     });
     let list = " (`flatbake palette` lists them)";
     let (per, _) = census(level);
+    let solid = per.iter().any(|&n| n > 0);
+    let none_emits = !level
+        .materials
+        .iter()
+        .zip(&per)
+        .any(|(m, n)| m.kind == MaterialKind::Emitter && *n > 0);
+    match level.origin {
+        Origin::Tiled if none_emits => {
+            return format!(
+                "{head}. No tile or object of the map is an emitter{}. Add an object of class \
+                 `light` (a point, rectangle or ellipse), or give a tile of the wall layer the \
+                 custom property `flatbake` = `emitter`",
+                if solid { "" } else { ", and none is a wall" }
+            );
+        }
+        Origin::Ldtk if none_emits => {
+            return format!(
+                "{head}. No IntGrid value or entity of the level is an emitter{}. Add an entity \
+                 named `Light` or tagged `light`, name an IntGrid value `light`, or map an \
+                 identifier to `emitter` in the level field `flatbake` (`Torch = emitter`)",
+                if solid { "" } else { ", and none is a wall" }
+            );
+        }
+        _ => {}
+    }
     let emitters = level
         .materials
         .iter()

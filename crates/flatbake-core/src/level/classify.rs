@@ -287,6 +287,7 @@ pub(super) fn classify_pixels(
         materials,
         warnings,
         lossy_format: None,
+        origin: Default::default(),
     }
 }
 

@@ -748,6 +748,6 @@ pub fn load_ldtk(path: &Path, limits: LoadLimits) -> Result<Level, LevelError> {
         }
     }
     canvas
-        .into_level(names::project_level_name(project, id))
+        .into_level(names::project_level_name(project, id), super::Origin::Ldtk)
         .map_err(|p| err(project, here, p))
 }

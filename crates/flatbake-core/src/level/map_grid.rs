@@ -220,7 +220,7 @@ impl Canvas {
 
     /// The resolved level: floor (albedo 0.5 where nothing is painted) and
     /// one material per distinct solid. Fails only past 65536 materials.
-    pub fn into_level(self, name: String) -> Result<Level, String> {
+    pub fn into_level(self, name: String, origin: super::Origin) -> Result<Level, String> {
         let mut materials: Vec<Material> = Vec::new();
         let mut index: HashMap<String, u16> = HashMap::new();
         let mut cells = Vec::with_capacity(self.cells.len());
@@ -263,6 +263,7 @@ impl Canvas {
             materials,
             warnings: Vec::new(),
             lossy_format: None,
+            origin,
         })
     }
 }

@@ -86,6 +86,22 @@ pub struct Level {
     /// colours are not exactly the painted ones; `None` for lossless images
     /// and levels built in memory.
     pub lossy_format: Option<&'static str>,
+    /// What the level was made from, so that a message can say what to
+    /// change there (a palette colour, a tile property, an entity).
+    pub origin: Origin,
+}
+
+/// What a [`Level`] was made from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Origin {
+    /// An image whose colours the palette classifies (and levels built in
+    /// memory).
+    #[default]
+    Image,
+    /// A Tiled map: tile properties and objects.
+    Tiled,
+    /// An LDtk project's level: IntGrid values and entities.
+    Ldtk,
 }
 
 /// Why a level could not be loaded.

@@ -279,7 +279,9 @@ pub fn load_tiled(path: &Path, limits: LoadLimits) -> Result<Level, LevelError> 
             canvas.paint(x0, y0, ow, oh, ellipse, &kind);
         }
     }
-    canvas.into_level(name).map_err(|p| err(path, "map", p))
+    canvas
+        .into_level(name, super::Origin::Tiled)
+        .map_err(|p| err(path, "map", p))
 }
 
 /// Appends `layers` and, after each group layer, the layers inside it, in

@@ -196,6 +196,7 @@ impl Cache {
             materials: self.materials.clone(),
             warnings: Vec::new(),
             lossy_format: None,
+            origin: Default::default(),
         }
     }
 

@@ -296,6 +296,7 @@ mod tests {
                 materials: names.iter().map(|n| emitter(n)).collect(),
                 warnings: vec![],
                 lossy_format: None,
+                origin: Default::default(),
             };
             let r = Responses {
                 width: 1,

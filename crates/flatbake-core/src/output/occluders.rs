@@ -561,6 +561,7 @@ mod tests {
             materials: vec![],
             warnings: vec![],
             lossy_format: None,
+            origin: Default::default(),
         };
         let g = crate::geometry::trace(&level);
         for tol in [f64::NAN, -1.0, 0.0] {
