@@ -78,7 +78,8 @@ pub struct RelightArgs {
     /// Output folder; never the folder of the level's bake.
     #[arg(short = 'o', long = "out", default_value = "out/relit")]
     pub out: PathBuf,
-    /// Refuse the cache unless it was baked from this level image.
+    /// Refuse the cache unless it was baked from this level as it is now (an
+    /// image, a map, or PROJECT.ldtk/LEVEL).
     #[arg(long, value_name = "FILE")]
     pub level: Option<PathBuf>,
     /// Also write the light layers with the new emission.

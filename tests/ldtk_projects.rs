@@ -253,6 +253,54 @@ fn a_level_without_lights_is_told_how_to_add_one_in_ldtk() {
 }
 
 #[test]
+fn relight_checks_a_cache_against_its_own_level_of_the_project() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = glowing_project(dir.path());
+    let run = |args: &[&std::ffi::OsStr]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_flatbake"))
+            .args(args)
+            .output()
+            .expect("flatbake runs")
+    };
+    let (one, other) = (project.join("World_Level_0"), project.join("World_Level_1"));
+    let out = dir.path().join("out");
+    let baked = run(&[
+        "bake".as_ref(),
+        one.as_os_str(),
+        "--cache".as_ref(),
+        "-o".as_ref(),
+        out.as_os_str(),
+    ]);
+    assert!(baked.status.success(), "{baked:?}");
+    let cache = out.join(format!("{SEPARATE}.World_Level_0.flatbake"));
+    let relit = dir.path().join("relit");
+    let relight = |level: &Path| {
+        run(&[
+            "relight".as_ref(),
+            cache.as_os_str(),
+            "--level".as_ref(),
+            level.as_os_str(),
+            "-o".as_ref(),
+            relit.as_os_str(),
+        ])
+    };
+    let same = relight(&one);
+    assert!(same.status.success(), "{same:?}");
+    assert!(
+        relit
+            .join(format!("{SEPARATE}.World_Level_0.lightmap.png"))
+            .is_file()
+    );
+    let wrong = relight(&other);
+    assert_eq!(wrong.status.code(), Some(1), "{wrong:?}");
+    let err = String::from_utf8_lossy(&wrong.stderr);
+    assert!(
+        err.contains("another level") && err.contains("World_Level_1"),
+        "{err}"
+    );
+}
+
+#[test]
 fn a_light_entity_with_a_radius_is_a_disc_around_its_position() {
     let dir = tempfile::tempdir().unwrap();
     let path = all_features_with(

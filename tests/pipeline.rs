@@ -405,7 +405,7 @@ fn relight_refuses_other_versions_levels_and_damaged_files() {
     img.save(&other_png).expect("write");
     let o = relight(&cache, &["--level", s(&other_png)]);
     assert_eq!(o.status.code(), Some(1));
-    assert!(stderr(&o).contains("another image"), "{}", stderr(&o));
+    assert!(stderr(&o).contains("another level"), "{}", stderr(&o));
 
     // A colour that is not an emitter of this level is named.
     let o = relight(&cache, &["--emission", "#123456=1"]);

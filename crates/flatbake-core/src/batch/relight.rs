@@ -94,10 +94,7 @@ pub fn relight(cache_path: &Path, opts: &RelightOptions) -> Result<Report> {
     let t0 = Instant::now();
     let cache = Cache::read(cache_path)?;
     if let Some(img) = &opts.level_image {
-        let bytes = std::fs::read(img).map_err(|source| Error::Read {
-            path: img.clone(),
-            source,
-        })?;
+        let bytes = super::stamp::level_source(img)?;
         if blake3::hash(&bytes).to_hex().as_str() != cache.image_hash {
             return Err(CacheError::OtherImage {
                 cache: cache_path.to_path_buf(),

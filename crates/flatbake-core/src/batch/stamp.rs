@@ -54,6 +54,20 @@ pub struct Stamp {
     pub hashes: Vec<String>,
 }
 
+/// The bytes of a level's own source whose hash is its `image_hash`: the
+/// image or map file, or for a level of an LDtk project what the project
+/// says about that level (not the whole project file: editing one level
+/// re-bakes only that one).
+pub fn level_source(path: &Path) -> Result<Vec<u8>> {
+    match crate::level::ldtk::project_level(path) {
+        Some(_) => Ok(crate::level::ldtk::level_inputs(path)?),
+        None => std::fs::read(path).map_err(|source| Error::Read {
+            path: path.to_path_buf(),
+            source,
+        }),
+    }
+}
+
 /// Hashes what the outputs of `recipe`'s level depend on.
 pub fn inputs(recipe: &Recipe) -> Result<Inputs> {
     let read = |path: &Path| {
@@ -62,12 +76,7 @@ pub fn inputs(recipe: &Recipe) -> Result<Inputs> {
             source,
         })
     };
-    // A level of an LDtk project is what its project says about it, not
-    // the whole project file: editing one level re-bakes only that one.
-    let image = match crate::level::ldtk::project_level(recipe.image) {
-        Some(_) => crate::level::ldtk::level_inputs(recipe.image)?,
-        None => read(recipe.image)?,
-    };
+    let image = level_source(recipe.image)?;
     let image_hash = blake3::hash(&image).to_hex().to_string();
     let mut h = blake3::Hasher::new();
     h.update(b"flatbake ");

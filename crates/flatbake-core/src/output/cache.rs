@@ -86,7 +86,7 @@ pub enum CacheError {
     },
     /// `--level` names another image than the one the cache was baked from.
     #[error(
-        "{} was baked from another image than {} (or the image changed since): bake it again with --cache",
+        "{} was baked from another level than {} (or the level changed since): bake it again with --cache",
         .cache.display(),
         .image.display()
     )]
