@@ -733,3 +733,35 @@ fn level_fields_carry_the_bake_settings() {
         "{e}"
     );
 }
+
+#[test]
+fn projects_of_ldtk_0_7_and_0_8_load_as_ldtk_upgrades_them() {
+    let dir = Path::new(FIXTURES).join("legacy");
+    let old = dir.join("AutoLayers_1_basic.0.7.1.ldtk");
+    // The 0.7.1 file lists its set cells: every one is value index 0, "walls".
+    let p = read_json(&old);
+    let layer = p["levels"][0]["layerInstances"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|l| l["__type"] == "IntGrid")
+        .expect("an IntGrid layer");
+    let cells = layer["intGrid"]
+        .as_array()
+        .expect("the pre-0.8 intGrid list");
+    let grid = layer["__gridSize"].as_u64().unwrap() as usize;
+    let mut levels = Vec::new();
+    for file in [old, dir.join("AutoLayers_1_basic.0.8.0.ldtk")] {
+        let ids = ldtk::project_levels(&file).expect("the levels are listed");
+        assert_eq!(ids.len(), 1, "{}", file.display());
+        let level = load(&ids[0]).expect("an old project loads");
+        let walls = solids(&level)
+            .iter()
+            .filter(|k| k.is_some_and(|k| k.0 == MaterialKind::Wall))
+            .count();
+        assert_eq!(walls, cells.len() * grid * grid, "{}", file.display());
+        levels.push(level.cells);
+    }
+    // The two versions of the sample hold the same walls.
+    assert!(levels[0] == levels[1]);
+}

@@ -99,6 +99,9 @@ struct LayerDef {
 
 #[derive(Debug, Deserialize, Serialize)]
 struct IntGridValue {
+    /// Missing in projects of LDtk before 0.9, where a value is its place in
+    /// the list (1, 2, ...): [`upgrade_legacy`] fills it in as LDtk does.
+    #[serde(default = "no_value")]
     value: i64,
     identifier: Option<String>,
 }
@@ -112,6 +115,11 @@ struct EntityDef {
     /// hand edit of the definition may leave behind, so both count.
     #[serde(default)]
     tags: Vec<String>,
+    /// The size an instance has when it does not say (LDtk before 0.8).
+    #[serde(default)]
+    width: f64,
+    #[serde(default)]
+    height: f64,
 }
 
 #[derive(Debug, Deserialize, Serialize)]
@@ -153,8 +161,91 @@ struct LayerInstance {
     layer_def_uid: i64,
     #[serde(rename = "intGridCsv", default)]
     int_grid_csv: Vec<i64>,
+    /// LDtk before 0.8: the set cells, each a cell index and a value index
+    /// (value - 1); [`upgrade_legacy`] turns it into `int_grid_csv`.
+    #[serde(rename = "intGrid", default, skip_serializing)]
+    int_grid: Option<Vec<LegacyIntGridCell>>,
     #[serde(rename = "entityInstances", default)]
     entity_instances: Vec<EntityInstance>,
+}
+
+#[derive(Debug, Deserialize)]
+struct LegacyIntGridCell {
+    #[serde(rename = "coordId")]
+    coord_id: i64,
+    v: i64,
+}
+
+fn no_value() -> i64 {
+    i64::MIN
+}
+
+fn no_size() -> f64 {
+    f64::NAN
+}
+
+/// Reads projects of older LDtk versions the way LDtk itself upgrades them:
+/// an IntGrid value without a `value` is its place in the list (from 1),
+/// and a layer with the pre-0.8 `intGrid` list instead of `intGridCsv` has
+/// value `v + 1` at cell `coordId`; an `intGridCsv` with negative entries is
+/// the short-lived zero-based form of LDtk 0.8 (-1 empty, else the value's
+/// index), shifted up by one. An entity instance without a size has its
+/// definition's. A cell outside the layer is an error.
+fn upgrade_legacy(
+    project: &Path,
+    defs: &mut Defs,
+    level: &mut LevelJson,
+) -> Result<(), LevelError> {
+    for layer in &mut defs.layers {
+        for (k, v) in layer.int_grid_values.iter_mut().enumerate() {
+            if v.value == no_value() {
+                v.value = k as i64 + 1;
+            }
+        }
+    }
+    for layer in level.layer_instances.iter_mut().flatten() {
+        for e in &mut layer.entity_instances {
+            let def = defs.entities.iter().find(|d| d.uid == e.def_uid);
+            if e.width.is_nan() {
+                e.width = def.map_or(0.0, |d| d.width);
+            }
+            if e.height.is_nan() {
+                e.height = def.map_or(0.0, |d| d.height);
+            }
+        }
+        if layer.int_grid_csv.iter().any(|&v| v < 0) {
+            layer
+                .int_grid_csv
+                .iter_mut()
+                .for_each(|v| *v = v.saturating_add(1));
+        }
+        let Some(cells) = layer.int_grid.take() else {
+            continue;
+        };
+        if !layer.int_grid_csv.is_empty() {
+            continue;
+        }
+        let n = (layer.c_wid.max(0) as usize).saturating_mul(layer.c_hei.max(0) as usize);
+        let mut csv = vec![0; n];
+        for c in cells {
+            let slot = usize::try_from(c.coord_id)
+                .ok()
+                .and_then(|i| csv.get_mut(i));
+            let Some(slot) = slot else {
+                return Err(err(
+                    project,
+                    format!("level {:?}, layer {:?}", level.identifier, layer.identifier),
+                    format!(
+                        "intGrid cell {} is outside the layer's {} x {} cells",
+                        c.coord_id, layer.c_wid, layer.c_hei
+                    ),
+                ));
+            };
+            *slot = c.v.saturating_add(1);
+        }
+        layer.int_grid_csv = csv;
+    }
+    Ok(())
 }
 
 #[derive(Debug, Deserialize, Serialize)]
@@ -165,7 +256,10 @@ struct EntityInstance {
     pivot: [f64; 2],
     #[serde(rename = "__tags", default)]
     tags: Vec<String>,
+    /// Missing before LDtk 0.8: the definition's ([`upgrade_legacy`]).
+    #[serde(default = "no_size")]
     width: f64,
+    #[serde(default = "no_size")]
     height: f64,
     #[serde(rename = "defUid")]
     def_uid: i64,
@@ -234,7 +328,7 @@ fn read_level(project: &Path, id: &str) -> Result<(Defs, LevelJson), LevelError>
         ));
     };
     let Project {
-        defs,
+        mut defs,
         levels,
         worlds,
     } = p;
@@ -270,6 +364,7 @@ fn read_level(project: &Path, id: &str) -> Result<(Defs, LevelJson), LevelError>
         level.layer_instances = ext.layer_instances;
         level.field_instances = ext.field_instances;
     }
+    upgrade_legacy(project, &mut defs, &mut level)?;
     Ok((defs, level))
 }
 
@@ -576,7 +671,7 @@ pub fn load_ldtk(path: &Path, limits: LoadLimits) -> Result<Level, LevelError> {
             project,
             place(layer_place),
             format!(
-                "intGridCsv holds {} values for {cw} x {ch} cells (a project saved by LDtk before 0.8 has none: open and save it again)",
+                "intGridCsv holds {} values for {cw} x {ch} cells ",
                 grid.int_grid_csv.len()
             ),
         ));
