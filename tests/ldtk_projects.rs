@@ -765,3 +765,19 @@ fn projects_of_ldtk_0_7_and_0_8_load_as_ldtk_upgrades_them() {
     // The two versions of the sample hold the same walls.
     assert!(levels[0] == levels[1]);
 }
+
+#[test]
+fn a_project_too_old_to_read_is_an_error_naming_its_version() {
+    let dir = tempfile::tempdir().unwrap();
+    // The 0.7.1 sample with its levels in a shape no LDtk version wrote,
+    // claiming to be from LDtk 0.3.0.
+    let mut p = read_json(&Path::new(FIXTURES).join("legacy/AutoLayers_1_basic.0.7.1.ldtk"));
+    p["jsonVersion"] = json!("0.3.0");
+    p["levels"] = json!([{"identifier": 7}]);
+    let file = dir.path().join("old.ldtk");
+    std::fs::write(&file, serde_json::to_vec(&p).unwrap()).unwrap();
+    let e = ldtk::project_levels(&file).unwrap_err().to_string();
+    for words in ["old.ldtk", "LDtk 0.3.0", "0.4 and later", "save it again"] {
+        assert!(e.contains(words), "{words:?} missing from: {e}");
+    }
+}

@@ -308,8 +308,38 @@ fn read_project(project: &Path) -> Result<Project, LevelError> {
         };
         err(project, "project", problem)
     })?;
-    serde_json::from_slice(&bytes)
-        .map_err(|e| err(project, "project", format!("not an LDtk project: {e}")))
+    serde_json::from_slice(&bytes).map_err(|e| {
+        // Name the version that wrote it: projects older than the ones
+        // read here need a round trip through a current LDtk.
+        #[derive(Deserialize)]
+        struct Version {
+            #[serde(rename = "jsonVersion")]
+            json_version: String,
+        }
+        let hint = match serde_json::from_slice::<Version>(&bytes) {
+            Ok(v) if is_before(&v.json_version, (0, 4)) => format!(
+                " (saved by LDtk {}: flatbake reads projects of LDtk 0.4 and later; open it \
+                 in a current LDtk and save it again)",
+                v.json_version
+            ),
+            Ok(v) => format!(" (saved by LDtk {})", v.json_version),
+            Err(_) => String::new(),
+        };
+        err(
+            project,
+            "project",
+            format!("not an LDtk project: {e}{hint}"),
+        )
+    })
+}
+
+/// True when a version string `major.minor...` is before `(major, minor)`.
+fn is_before(version: &str, (major, minor): (u32, u32)) -> bool {
+    let mut parts = version
+        .split('.')
+        .map(|p| p.trim().parse::<u32>().unwrap_or(0));
+    let v = (parts.next().unwrap_or(0), parts.next().unwrap_or(0));
+    v < (major, minor)
 }
 
 /// The project and its level `id`, with the level's layers read from its
