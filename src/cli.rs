@@ -835,6 +835,12 @@ fn level_line(path: &Path, r: &Report) -> String {
         line.push_str("; left out: ");
         line.push_str(&skips.join(", "));
     }
+    if !r.removed.is_empty() {
+        line.push_str(&format!(
+            "; removed what this bake no longer writes: {}",
+            r.removed.join(", ")
+        ));
+    }
     line
 }
 

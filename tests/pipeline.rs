@@ -725,3 +725,75 @@ fn max_memory_refuses_above_the_estimate_and_bakes_at_it() {
         Ok(_) => panic!("baked above its limit"),
     }
 }
+
+#[test]
+fn a_bake_without_a_flag_removes_what_the_flag_wrote_and_nothing_else() {
+    let dir = tempfile::tempdir().unwrap();
+    let img = write_level(dir.path(), "room", &default_palette());
+    let out = dir.path().join("out");
+    let bake = |flags: &[&str]| {
+        let mut args = vec!["bake", s(&img), "-o", s(&out)];
+        args.extend_from_slice(flags);
+        let o = flatbake(&args);
+        assert_exit(&o, EXIT_OK);
+        o
+    };
+    bake(&["--hdr", "--layers", "--occluders"]);
+    let extras = [
+        "room.lightmap.exr",
+        "room.layers.json",
+        "room.occluders.json",
+        "room.occluders.svg",
+        "room.occluders.tres",
+    ];
+    for f in extras {
+        assert!(out.join(f).is_file(), "{f} written");
+    }
+    let layer_files: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|f| f.starts_with("room.layer-"))
+        .collect();
+    assert!(!layer_files.is_empty());
+    // Files the stamp does not list stay, whatever their names.
+    std::fs::write(out.join("room.notes.txt"), "mine").unwrap();
+    std::fs::write(dir.path().join("outside.png"), "mine").unwrap();
+    let mut stamp: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("room.stamp.json")).unwrap()).unwrap();
+    for f in ["room.notes.txt", "../outside.png"] {
+        stamp["outputs"].as_array_mut().unwrap().push(f.into());
+        stamp["hashes"].as_array_mut().unwrap().push("0".into());
+    }
+    std::fs::write(out.join("room.stamp.json"), stamp.to_string()).unwrap();
+
+    let o = bake(&[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("removed what this bake no longer writes"),
+        "{err}"
+    );
+    for f in extras
+        .iter()
+        .copied()
+        .chain(layer_files.iter().map(|f| f.as_str()))
+    {
+        assert!(!out.join(f).exists(), "{f} is stale and stays");
+    }
+    for f in [
+        "room.lightmap.png",
+        "room.lit.png",
+        "room.report.json",
+        "room.stamp.json",
+    ] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    assert!(out.join("room.notes.txt").is_file());
+    assert!(dir.path().join("outside.png").is_file());
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("room.report.json")).unwrap()).unwrap();
+    let removed = report["removed"].as_array().expect("the report lists them");
+    assert_eq!(removed.len(), extras.len() + layer_files.len());
+    // The next bake with the same flags is up to date and removes nothing.
+    let o = bake(&[]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("1 up to date"));
+}

@@ -137,6 +137,11 @@ pub struct Report {
     /// Files written, relative to the output folder.
     #[serde(default)]
     pub outputs: Vec<String>,
+    /// Outputs that the level's previous bake into the same folder wrote
+    /// and this one does not (a flag such as `--hdr` or `--occluders`
+    /// dropped): removed, so that nothing stale sits beside the new files.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub removed: Vec<String>,
     /// flatbake version that wrote the report.
     #[serde(default)]
     pub version: String,
@@ -173,6 +178,7 @@ impl Report {
             warnings: log.warnings,
             problems: log.problems,
             outputs: vec![],
+            removed: vec![],
             version: env!("CARGO_PKG_VERSION").into(),
         }
     }

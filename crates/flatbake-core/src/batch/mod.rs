@@ -694,6 +694,22 @@ pub fn bake_one(path: &Path, opts: &BatchOptions, observer: &dyn Observer) -> Re
     // nothing), the stamp removed before the renames, the new stamp last.
     // Whatever fails in between leaves no stamp: not up to date.
     let dir = &opts.out_dir;
+    // Outputs the previous bake wrote (its stamp says which) that this one
+    // does not: removed with the old stamp, before the new files go in.
+    let writes: Vec<String> = images
+        .iter()
+        .chain(&extra)
+        .map(|f| f.kind.file_name(&level.name))
+        .chain([OutputKind::Report, OutputKind::Stamp].map(|k| k.file_name(&level.name)))
+        .collect();
+    report.removed = stamp::read(path, dir)
+        .map(|s| s.outputs)
+        .unwrap_or_default()
+        .into_iter()
+        .filter(|o| OutputKind::is_output_of(o, &level.name) && !writes.contains(o))
+        .filter(|o| dir.join(o).is_file())
+        .collect();
+    let stale = report.removed.clone();
     let written = output::write_level_files(
         dir,
         &level.name,
@@ -701,7 +717,18 @@ pub fn bake_one(path: &Path, opts: &BatchOptions, observer: &dyn Observer) -> Re
         &extra,
         &mut report,
         start,
-        || stamp::invalidate(&recipe, dir),
+        || {
+            stamp::invalidate(&recipe, dir)?;
+            for o in &stale {
+                let path = dir.join(o);
+                match std::fs::remove_file(&path) {
+                    Ok(()) => {}
+                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+                    Err(error) => return Err(output::OutputError::Write { path, error }),
+                }
+            }
+            Ok(())
+        },
     )?;
     stamp::write(&recipe, dir, &inputs, &written)?;
     Ok(report)

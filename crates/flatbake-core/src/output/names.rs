@@ -133,6 +133,44 @@ impl OutputKind {
         }
     }
 
+    /// True when `file` is a file name an output of level `name` can have
+    /// (`NAME.` and a known suffix, a layer's with any tag; no folder).
+    pub fn is_output_of(file: &str, name: &str) -> bool {
+        let Some(suffix) = file.strip_prefix(name).and_then(|s| s.strip_prefix('.')) else {
+            return false;
+        };
+        let fixed = [
+            OutputKind::Lightmap,
+            OutputKind::Lit,
+            OutputKind::Hdr,
+            OutputKind::Ktx2,
+            OutputKind::Rgbm,
+            OutputKind::RgbmUnity,
+            OutputKind::Report,
+            OutputKind::Stamp,
+            OutputKind::Cache,
+            OutputKind::LayersManifest,
+            OutputKind::OccludersJson,
+            OutputKind::OccludersSvg,
+            OutputKind::OccludersTres,
+            OutputKind::DirectionalExr,
+            OutputKind::DirectionPng,
+            OutputKind::LitNormalsPng,
+        ];
+        let layer = suffix.strip_prefix("layer-").is_some_and(|rest| {
+            let tag = rest
+                .strip_suffix(".directional.exr")
+                .or_else(|| rest.strip_suffix(".exr"))
+                .or_else(|| rest.strip_suffix(".png"));
+            tag.is_some_and(|t| {
+                !t.is_empty()
+                    && t.chars()
+                        .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
+            })
+        });
+        !file.contains(['/', '\\']) && (layer || fixed.iter().any(|k| k.suffix() == suffix))
+    }
+
     /// The file name of this output for level `name`.
     pub fn file_name(&self, name: &str) -> String {
         format!("{name}.{}", self.suffix())
