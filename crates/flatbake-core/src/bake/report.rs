@@ -140,7 +140,7 @@ pub struct Report {
     /// Outputs that the level's previous bake into the same folder wrote
     /// and this one does not (a flag such as `--hdr` or `--occluders`
     /// dropped): removed, so that nothing stale sits beside the new files.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    #[serde(default)]
     pub removed: Vec<String>,
     /// flatbake version that wrote the report.
     #[serde(default)]
