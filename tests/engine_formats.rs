@@ -620,3 +620,54 @@ fn relight_writes_ktx2_and_compressed_exr_too() {
         .collect::<Vec<_>>();
     assert!(!layers.is_empty() && layers.iter().all(|&c| c == 4));
 }
+
+#[test]
+fn the_moments_of_a_directional_bake_go_into_signed_ktx2_files_with_the_lightmap() {
+    let lvl = level();
+    let mut s = Settings::new(Quality::Draft);
+    s.directional = true;
+    let b = bake(&lvl, &s, &quiet).expect("bake");
+    let dir = b.directional.as_ref().expect("asked for moments");
+    let opts = OutputOptions {
+        ktx2: true,
+        ..OutputOptions::default()
+    };
+    let files =
+        flatbake_core::output::directional::encode_directional(&lvl, &b.lightmap, dir, None, &opts)
+            .expect("encodes");
+    // Without the KTX2 lightmap, no KTX2 moments.
+    let plain = flatbake_core::output::directional::encode_directional(
+        &lvl,
+        &b.lightmap,
+        dir,
+        None,
+        &OutputOptions::default(),
+    )
+    .expect("encodes");
+    assert!(plain.iter().all(|f| !f.kind.suffix().ends_with(".ktx2")));
+    let cover = coverage(&lvl);
+    let (w, h) = (lvl.width as u32, lvl.height as u32);
+    let mut negatives = 0;
+    for (kind, m) in [
+        (OutputKind::DirectionalCosKtx2, &dir.cos),
+        (OutputKind::DirectionalSinKtx2, &dir.sin),
+    ] {
+        let texels = read_ktx2(file(&files, kind.clone()), w, h);
+        for (i, t) in texels.iter().enumerate() {
+            assert_eq!(t[3], cover[i], "{kind:?} alpha at {i}");
+            for c in 0..3 {
+                let want = if cover[i] > 0.0 { m[i][c] } else { 0.0 };
+                assert!(want.abs() < HALF_MAX);
+                assert!(
+                    (t[c] - want).abs() <= half_error_bound(want),
+                    "{kind:?} texel {i} channel {c}: {} for {want}",
+                    t[c]
+                );
+                negatives += usize::from(want < 0.0 && t[c] < 0.0);
+            }
+        }
+    }
+    // The light comes from the right (+x) and from all around the pillar:
+    // moments of both signs, and the negative ones kept.
+    assert!(negatives > 0);
+}

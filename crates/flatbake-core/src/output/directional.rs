@@ -211,6 +211,29 @@ pub fn encode_directional(
             &image::sdr_image(level, &shaded, opts, true),
         )?);
     }
+    if opts.ktx2 {
+        // The moments as the lightmap's KTX2: RGB the moment, A the floor.
+        for (kind, m) in [
+            (OutputKind::DirectionalCosKtx2, &dir.cos),
+            (OutputKind::DirectionalSinKtx2, &dir.sin),
+        ] {
+            let rgba: Vec<[f32; 4]> = (0..n)
+                .map(|i| {
+                    if floor(i) {
+                        [m[i][0], m[i][1], m[i][2], 1.0]
+                    } else {
+                        [0.0; 4]
+                    }
+                })
+                .collect();
+            let bytes = super::ktx2::encode_ktx2_rgba16f_signed(level.width, level.height, &rgba)
+                .map_err(|message| OutputError::Encode {
+                path: kind.file_name(name).into(),
+                message,
+            })?;
+            files.push(Encoded { kind, bytes });
+        }
+    }
     Ok(files)
 }
 

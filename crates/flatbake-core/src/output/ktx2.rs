@@ -17,7 +17,8 @@
 //!
 //! Each value is rounded to the nearest half float (ties to even, the
 //! [`half`] crate's conversion) after clamping to `[0, 65504]` (the largest
-//! finite half), so the round trip of a value `v` is within
+//! finite half; `[-65504, 65504]` for the signed moments of a directional
+//! bake, [`encode_ktx2_rgba16f_signed`]), so the round trip of a value `v` is within
 //! [`half_error_bound`]`(v)`: `2^-11 v` where the result is a normal half,
 //! `2^-25` below `2^-14`, where halves are subnormal.
 
@@ -61,6 +62,18 @@ pub fn to_half(v: f32) -> u16 {
     f16::from_f32(v).to_bits()
 }
 
+/// The half float bits written for a signed value (a circular moment):
+/// clamped to `[-HALF_MAX, HALF_MAX]` (NaN is 0), rounded to nearest, ties
+/// to even.
+pub fn to_half_signed(v: f32) -> u16 {
+    let v = if v.is_nan() {
+        0.0
+    } else {
+        v.clamp(-HALF_MAX, HALF_MAX)
+    };
+    f16::from_f32(v).to_bits()
+}
+
 /// Bytes of a KTX2 file holding `rgba` (row-major, `width * height`, top
 /// row first) as one level of `R16G16B16A16_SFLOAT` texels (see the module
 /// documentation for the layout and the rounding).
@@ -68,6 +81,25 @@ pub fn encode_ktx2_rgba16f(
     width: usize,
     height: usize,
     rgba: &[[f32; 4]],
+) -> Result<Vec<u8>, String> {
+    encode(width, height, rgba, to_half)
+}
+
+/// [`encode_ktx2_rgba16f`] for values of either sign (the moments of a
+/// directional bake): negatives are kept ([`to_half_signed`]).
+pub fn encode_ktx2_rgba16f_signed(
+    width: usize,
+    height: usize,
+    rgba: &[[f32; 4]],
+) -> Result<Vec<u8>, String> {
+    encode(width, height, rgba, to_half_signed)
+}
+
+fn encode(
+    width: usize,
+    height: usize,
+    rgba: &[[f32; 4]],
+    half: fn(f32) -> u16,
 ) -> Result<Vec<u8>, String> {
     if rgba.len() != width * height {
         return Err(format!(
@@ -110,7 +142,7 @@ pub fn encode_ktx2_rgba16f(
     out.resize(level_offset as usize, 0);
     for p in rgba {
         for &c in p {
-            out.extend_from_slice(&to_half(c).to_le_bytes());
+            out.extend_from_slice(&half(c).to_le_bytes());
         }
     }
     Ok(out)

@@ -105,6 +105,11 @@ pub enum OutputKind {
     LitNormalsPng,
     /// `NAME.layer-TAG.directional.exr`: one light group's mean and moments.
     LayerDirectionalExr(String),
+    /// `NAME.directional.cos.ktx2`: the cosine moments as RGBA 16-bit float
+    /// KTX2 (signed), alpha the floor coverage.
+    DirectionalCosKtx2,
+    /// `NAME.directional.sin.ktx2`: the sine moments, the same way.
+    DirectionalSinKtx2,
 }
 
 impl OutputKind {
@@ -130,6 +135,8 @@ impl OutputKind {
             OutputKind::DirectionPng => "direction.png".into(),
             OutputKind::LitNormalsPng => "lit-normals.png".into(),
             OutputKind::LayerDirectionalExr(tag) => format!("layer-{tag}.directional.exr"),
+            OutputKind::DirectionalCosKtx2 => "directional.cos.ktx2".into(),
+            OutputKind::DirectionalSinKtx2 => "directional.sin.ktx2".into(),
         }
     }
 
@@ -156,6 +163,8 @@ impl OutputKind {
             OutputKind::DirectionalExr,
             OutputKind::DirectionPng,
             OutputKind::LitNormalsPng,
+            OutputKind::DirectionalCosKtx2,
+            OutputKind::DirectionalSinKtx2,
         ];
         let layer = suffix.strip_prefix("layer-").is_some_and(|rest| {
             let tag = rest
@@ -174,5 +183,77 @@ impl OutputKind {
     /// The file name of this output for level `name`.
     pub fn file_name(&self, name: &str) -> String {
         format!("{name}.{}", self.suffix())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::OutputKind;
+
+    #[test]
+    fn every_output_file_is_recognised_as_one_and_nothing_else_is() {
+        let t = || "ff00aa".to_string();
+        let all = [
+            OutputKind::Lightmap,
+            OutputKind::Lit,
+            OutputKind::Hdr,
+            OutputKind::Ktx2,
+            OutputKind::Rgbm,
+            OutputKind::RgbmUnity,
+            OutputKind::Report,
+            OutputKind::Stamp,
+            OutputKind::Cache,
+            OutputKind::LayersManifest,
+            OutputKind::LayerExr(t()),
+            OutputKind::LayerPng(t()),
+            OutputKind::OccludersJson,
+            OutputKind::OccludersSvg,
+            OutputKind::OccludersTres,
+            OutputKind::DirectionalExr,
+            OutputKind::DirectionPng,
+            OutputKind::LitNormalsPng,
+            OutputKind::LayerDirectionalExr(t()),
+            OutputKind::DirectionalCosKtx2,
+            OutputKind::DirectionalSinKtx2,
+        ];
+        for k in &all {
+            // Exhaustive: a new kind must be added to `all` (and so checked).
+            match k {
+                OutputKind::Lightmap
+                | OutputKind::Lit
+                | OutputKind::Hdr
+                | OutputKind::Ktx2
+                | OutputKind::Rgbm
+                | OutputKind::RgbmUnity
+                | OutputKind::Report
+                | OutputKind::Stamp
+                | OutputKind::Cache
+                | OutputKind::LayersManifest
+                | OutputKind::LayerExr(_)
+                | OutputKind::LayerPng(_)
+                | OutputKind::OccludersJson
+                | OutputKind::OccludersSvg
+                | OutputKind::OccludersTres
+                | OutputKind::DirectionalExr
+                | OutputKind::DirectionPng
+                | OutputKind::LitNormalsPng
+                | OutputKind::LayerDirectionalExr(_)
+                | OutputKind::DirectionalCosKtx2
+                | OutputKind::DirectionalSinKtx2 => {}
+            }
+            let f = k.file_name("world.cellar");
+            assert!(OutputKind::is_output_of(&f, "world.cellar"), "{f}");
+            assert!(!OutputKind::is_output_of(&f, "world"), "{f} is not world's");
+        }
+        for f in [
+            "world.cellar.notes.txt",
+            "world.cellar.layer-a.b.png",
+            "world.cellar.layer-.exr",
+            "../world.cellar.lit.png",
+            "sub/world.cellar.lit.png",
+            "world.cellarlit.png",
+        ] {
+            assert!(!OutputKind::is_output_of(f, "world.cellar"), "{f}");
+        }
     }
 }
