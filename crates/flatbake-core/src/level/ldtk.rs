@@ -188,8 +188,11 @@ fn no_size() -> f64 {
 /// an IntGrid value without a `value` is its place in the list (from 1),
 /// and a layer with the pre-0.8 `intGrid` list instead of `intGridCsv` has
 /// value `v + 1` at cell `coordId`; an `intGridCsv` with negative entries is
-/// the short-lived zero-based form of LDtk 0.8 (-1 empty, else the value's
-/// index), shifted up by one. An entity instance without a size has its
+/// the zero-based form that development builds of LDtk 0.8 wrote (-1 empty,
+/// else the value's index), shifted up by one. Released versions never
+/// write a negative entry (0 is empty), and those builds already said
+/// `jsonVersion` 0.8.0, so the entries are the only sign; a level of such a
+/// build without one empty cell reads as one value higher. An entity instance without a size has its
 /// definition's. A cell outside the layer is an error.
 fn upgrade_legacy(
     project: &Path,
