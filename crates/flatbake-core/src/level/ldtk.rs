@@ -192,7 +192,8 @@ fn no_size() -> f64 {
 /// else the value's index), shifted up by one. Released versions never
 /// write a negative entry (0 is empty), and those builds already said
 /// `jsonVersion` 0.8.0, so the entries are the only sign; a level of such a
-/// build without one empty cell reads as one value higher. An entity instance without a size has its
+/// build without one empty cell reads one value too low (its first value
+/// as empty). An entity instance without a size has its
 /// definition's. A cell outside the layer is an error.
 fn upgrade_legacy(
     project: &Path,
