@@ -38,13 +38,7 @@ pub fn groups(level: &Level, r: &Responses) -> Vec<Group> {
             None => {
                 let mut tag: String = name
                     .chars()
-                    .map(|c| {
-                        if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
-                            c
-                        } else {
-                            '_'
-                        }
-                    })
+                    .map(|c| if super::names::is_tag_char(c) { c } else { '_' })
                     .collect();
                 // Two names that spell the same file name get a number, the
                 // first free one: a numbered tag may itself be taken ("b_2"

@@ -112,6 +112,12 @@ pub enum OutputKind {
     DirectionalSinKtx2,
 }
 
+/// True for the characters a light layer's file tag keeps from its group's
+/// name (others become `_`).
+pub fn is_tag_char(c: char) -> bool {
+    c.is_ascii_alphanumeric() || c == '-' || c == '_'
+}
+
 impl OutputKind {
     /// The file name suffix, after `NAME.`.
     pub fn suffix(&self) -> String {
@@ -140,44 +146,44 @@ impl OutputKind {
         }
     }
 
+    /// Every kind whose file name does not depend on a tag (all but the
+    /// light layers').
+    pub const UNTAGGED: [OutputKind; 18] = [
+        OutputKind::Lightmap,
+        OutputKind::Lit,
+        OutputKind::Hdr,
+        OutputKind::Ktx2,
+        OutputKind::Rgbm,
+        OutputKind::RgbmUnity,
+        OutputKind::Report,
+        OutputKind::Stamp,
+        OutputKind::Cache,
+        OutputKind::LayersManifest,
+        OutputKind::OccludersJson,
+        OutputKind::OccludersSvg,
+        OutputKind::OccludersTres,
+        OutputKind::DirectionalExr,
+        OutputKind::DirectionPng,
+        OutputKind::LitNormalsPng,
+        OutputKind::DirectionalCosKtx2,
+        OutputKind::DirectionalSinKtx2,
+    ];
+
     /// True when `file` is a file name an output of level `name` can have
     /// (`NAME.` and a known suffix, a layer's with any tag; no folder).
     pub fn is_output_of(file: &str, name: &str) -> bool {
         let Some(suffix) = file.strip_prefix(name).and_then(|s| s.strip_prefix('.')) else {
             return false;
         };
-        let fixed = [
-            OutputKind::Lightmap,
-            OutputKind::Lit,
-            OutputKind::Hdr,
-            OutputKind::Ktx2,
-            OutputKind::Rgbm,
-            OutputKind::RgbmUnity,
-            OutputKind::Report,
-            OutputKind::Stamp,
-            OutputKind::Cache,
-            OutputKind::LayersManifest,
-            OutputKind::OccludersJson,
-            OutputKind::OccludersSvg,
-            OutputKind::OccludersTres,
-            OutputKind::DirectionalExr,
-            OutputKind::DirectionPng,
-            OutputKind::LitNormalsPng,
-            OutputKind::DirectionalCosKtx2,
-            OutputKind::DirectionalSinKtx2,
-        ];
         let layer = suffix.strip_prefix("layer-").is_some_and(|rest| {
             let tag = rest
                 .strip_suffix(".directional.exr")
                 .or_else(|| rest.strip_suffix(".exr"))
                 .or_else(|| rest.strip_suffix(".png"));
-            tag.is_some_and(|t| {
-                !t.is_empty()
-                    && t.chars()
-                        .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
-            })
+            tag.is_some_and(|t| !t.is_empty() && t.chars().all(is_tag_char))
         });
-        !file.contains(['/', '\\']) && (layer || fixed.iter().any(|k| k.suffix() == suffix))
+        !file.contains(['/', '\\'])
+            && (layer || Self::UNTAGGED.iter().any(|k| k.suffix() == suffix))
     }
 
     /// The file name of this output for level `name`.
@@ -193,31 +199,15 @@ mod tests {
     #[test]
     fn every_output_file_is_recognised_as_one_and_nothing_else_is() {
         let t = || "ff00aa".to_string();
-        let all = [
-            OutputKind::Lightmap,
-            OutputKind::Lit,
-            OutputKind::Hdr,
-            OutputKind::Ktx2,
-            OutputKind::Rgbm,
-            OutputKind::RgbmUnity,
-            OutputKind::Report,
-            OutputKind::Stamp,
-            OutputKind::Cache,
-            OutputKind::LayersManifest,
+        let tagged = [
             OutputKind::LayerExr(t()),
             OutputKind::LayerPng(t()),
-            OutputKind::OccludersJson,
-            OutputKind::OccludersSvg,
-            OutputKind::OccludersTres,
-            OutputKind::DirectionalExr,
-            OutputKind::DirectionPng,
-            OutputKind::LitNormalsPng,
             OutputKind::LayerDirectionalExr(t()),
-            OutputKind::DirectionalCosKtx2,
-            OutputKind::DirectionalSinKtx2,
         ];
+        let all: Vec<OutputKind> = OutputKind::UNTAGGED.into_iter().chain(tagged).collect();
         for k in &all {
-            // Exhaustive: a new kind must be added to `all` (and so checked).
+            // Exhaustive: a new kind must be added to UNTAGGED or `tagged`
+            // (and so checked).
             match k {
                 OutputKind::Lightmap
                 | OutputKind::Lit
