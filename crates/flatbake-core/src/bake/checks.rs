@@ -169,13 +169,14 @@ fn no_light(level: &Level) -> String {
     let list = " (`flatbake palette` lists them)";
     let (per, _) = census(level);
     let solid = per.iter().any(|&n| n > 0);
-    let none_emits = !level
+    let emitters = level
         .materials
         .iter()
         .zip(&per)
-        .any(|(m, n)| m.kind == MaterialKind::Emitter && *n > 0);
+        .filter(|(m, n)| m.kind == MaterialKind::Emitter && **n > 0)
+        .count();
     match level.origin {
-        Origin::Tiled if none_emits => {
+        Origin::Tiled if emitters == 0 => {
             return format!(
                 "{head}. No tile or object of the map is an emitter{}. Add an object of class \
                  `light` (a point, rectangle or ellipse), or give a tile of the wall layer the \
@@ -183,7 +184,7 @@ fn no_light(level: &Level) -> String {
                 if solid { "" } else { ", and none is a wall" }
             );
         }
-        Origin::Ldtk if none_emits => {
+        Origin::Ldtk if emitters == 0 => {
             return format!(
                 "{head}. No IntGrid value or entity of the level is an emitter{}. Add an entity \
                  named `Light` or tagged `light`, name an IntGrid value `light`, or map an \
@@ -193,13 +194,7 @@ fn no_light(level: &Level) -> String {
         }
         _ => {}
     }
-    let emitters = level
-        .materials
-        .iter()
-        .zip(&per)
-        .filter(|(m, n)| m.kind == MaterialKind::Emitter && **n > 0)
-        .count();
-    if per.iter().all(|&n| n == 0) {
+    if !solid {
         format!(
             "{head}. No colour matched the palette: every pixel is floor or void, with no wall \
              and no lamp.{}",
