@@ -719,15 +719,9 @@ pub fn bake_one(path: &Path, opts: &BatchOptions, observer: &dyn Observer) -> Re
         start,
         || {
             stamp::invalidate(&recipe, dir)?;
-            for o in &stale {
-                let path = dir.join(o);
-                match std::fs::remove_file(&path) {
-                    Ok(()) => {}
-                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-                    Err(error) => return Err(output::OutputError::Write { path, error }),
-                }
-            }
-            Ok(())
+            stale
+                .iter()
+                .try_for_each(|o| output::remove_output(&dir.join(o)))
         },
     )?;
     stamp::write(&recipe, dir, &inputs, &written)?;

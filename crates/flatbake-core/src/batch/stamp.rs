@@ -179,12 +179,7 @@ pub fn up_to_date(recipe: &Recipe, out_dir: &Path) -> bool {
 /// done before a bake replaces any output, so that from then on, until the
 /// new stamp is written last, the level is not up to date whatever happens.
 pub fn invalidate(recipe: &Recipe, out_dir: &Path) -> Result<(), OutputError> {
-    let path = stamp_path(recipe, out_dir);
-    match std::fs::remove_file(&path) {
-        Ok(()) => Ok(()),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
-        Err(error) => Err(OutputError::Write { path, error }),
-    }
+    crate::output::remove_output(&stamp_path(recipe, out_dir))
 }
 
 /// Records that the `outputs` (file name and content hash) of `recipe`'s

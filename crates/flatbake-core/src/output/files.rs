@@ -291,6 +291,18 @@ impl StagedFile {
     }
 }
 
+/// Removes the output file `path`; one that is not there is fine.
+pub fn remove_output(path: &Path) -> Result<(), OutputError> {
+    match std::fs::remove_file(path) {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == ErrorKind::NotFound => Ok(()),
+        Err(error) => Err(OutputError::Write {
+            path: path.to_path_buf(),
+            error,
+        }),
+    }
+}
+
 /// [`write_atomic`] with errors that name the path in plain words.
 pub fn write_file_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
     write_atomic(path, bytes).map_err(|e| named_error(path, e))

@@ -37,7 +37,7 @@ pub use self::exr::{
 };
 pub use self::exr_compressed::ExrCompression;
 pub use self::files::{
-    OutputError, StagedFile, ensure_output_dir, write_atomic, write_file_atomic,
+    OutputError, StagedFile, ensure_output_dir, remove_output, write_atomic, write_file_atomic,
 };
 pub use self::image::{
     RGBM_RANGE, UNITY_RGBM_GAMMA, UNITY_RGBM_RANGE, encode_png, encode_png_rgba8,
