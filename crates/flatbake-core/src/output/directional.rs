@@ -217,15 +217,10 @@ pub fn encode_directional(
             (OutputKind::DirectionalCosKtx2, &dir.cos),
             (OutputKind::DirectionalSinKtx2, &dir.sin),
         ] {
-            let rgba: Vec<[f32; 4]> = (0..n)
-                .map(|i| {
-                    if floor(i) {
-                        [m[i][0], m[i][1], m[i][2], 1.0]
-                    } else {
-                        [0.0; 4]
-                    }
-                })
+            let on_floor: Vec<[f32; 3]> = (0..n)
+                .map(|i| if floor(i) { m[i] } else { [0.0; 3] })
                 .collect();
+            let rgba = super::with_coverage(level, &on_floor);
             let bytes = super::ktx2::encode_ktx2_rgba16f_signed(level.width, level.height, &rgba)
                 .map_err(|message| OutputError::Encode {
                 path: kind.file_name(name).into(),
