@@ -3,7 +3,11 @@
 //! that need flatbake's level fields add them to a copy, as a designer would
 //! in the editor, and count cells against the fixture's own `intGridCsv`.
 
+mod common;
+
 use std::path::{Path, PathBuf};
+
+use common::{EXIT_FAILED, EXIT_OK, assert_exit, assert_says, flatbake, s, stderr};
 
 use flatbake_core::MaterialKind;
 use flatbake_core::batch::{self, BatchOptions, LevelOutcome};
@@ -232,72 +236,43 @@ fn a_level_without_lights_is_told_how_to_add_one_in_ldtk() {
         |_| {},
     );
     let out = dir.path().join("out");
-    let run = std::process::Command::new(env!("CARGO_BIN_EXE_flatbake"))
-        .args(["bake".as_ref(), path.join("Everything").as_os_str()])
-        .arg("-o")
-        .arg(&out)
-        .output()
-        .expect("flatbake runs");
-    assert!(run.status.success(), "{run:?}");
-    let err = String::from_utf8_lossy(&run.stderr);
-    for words in [
-        "Everything",
-        "no light",
-        "tagged `light`",
-        "level field `flatbake`",
-    ] {
-        assert!(err.contains(words), "{words:?} missing from: {err}");
-    }
+    let run = flatbake(&["bake", s(&path.join("Everything")), "-o", s(&out)]);
+    assert_exit(&run, EXIT_OK);
+    assert_says(
+        &run,
+        &[
+            "Everything",
+            "no light",
+            "tagged `light`",
+            "level field `flatbake`",
+        ],
+    );
     // Not the advice for painted images.
-    assert!(!err.contains("palette"), "{err}");
+    assert!(!stderr(&run).contains("palette"), "{}", stderr(&run));
 }
 
 #[test]
 fn relight_checks_a_cache_against_its_own_level_of_the_project() {
     let dir = tempfile::tempdir().unwrap();
     let project = glowing_project(dir.path());
-    let run = |args: &[&std::ffi::OsStr]| {
-        std::process::Command::new(env!("CARGO_BIN_EXE_flatbake"))
-            .args(args)
-            .output()
-            .expect("flatbake runs")
-    };
     let (one, other) = (project.join("World_Level_0"), project.join("World_Level_1"));
     let out = dir.path().join("out");
-    let baked = run(&[
-        "bake".as_ref(),
-        one.as_os_str(),
-        "--cache".as_ref(),
-        "-o".as_ref(),
-        out.as_os_str(),
-    ]);
-    assert!(baked.status.success(), "{baked:?}");
+    let baked = flatbake(&["bake", s(&one), "--cache", "-o", s(&out)]);
+    assert_exit(&baked, EXIT_OK);
     let cache = out.join(format!("{SEPARATE}.World_Level_0.flatbake"));
     let relit = dir.path().join("relit");
-    let relight = |level: &Path| {
-        run(&[
-            "relight".as_ref(),
-            cache.as_os_str(),
-            "--level".as_ref(),
-            level.as_os_str(),
-            "-o".as_ref(),
-            relit.as_os_str(),
-        ])
-    };
+    let relight =
+        |level: &Path| flatbake(&["relight", s(&cache), "--level", s(level), "-o", s(&relit)]);
     let same = relight(&one);
-    assert!(same.status.success(), "{same:?}");
+    assert_exit(&same, EXIT_OK);
     assert!(
         relit
             .join(format!("{SEPARATE}.World_Level_0.lightmap.png"))
             .is_file()
     );
     let wrong = relight(&other);
-    assert_eq!(wrong.status.code(), Some(1), "{wrong:?}");
-    let err = String::from_utf8_lossy(&wrong.stderr);
-    assert!(
-        err.contains("another level") && err.contains("World_Level_1"),
-        "{err}"
-    );
+    assert_exit(&wrong, EXIT_FAILED);
+    assert_says(&wrong, &["another level", "World_Level_1"]);
 }
 
 #[test]

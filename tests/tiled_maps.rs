@@ -9,7 +9,7 @@ mod common;
 
 use std::path::Path;
 
-use common::{EXIT_OK, assert_exit, flatbake, s, write_room};
+use common::{EXIT_OK, assert_exit, assert_says, flatbake, s, stderr, write_room};
 
 use flatbake_core::MaterialKind;
 use flatbake_core::level::tiled_map::load_tiled;
@@ -228,15 +228,15 @@ fn a_map_without_lights_is_told_how_to_add_one_in_tiled() {
     let out = dir.path().join("out");
     let run = flatbake(&["bake", s(&map), "-o", s(&out)]);
     assert_exit(&run, EXIT_OK);
-    let err = String::from_utf8_lossy(&run.stderr);
-    for words in [
-        "room.tmx",
-        "no light",
-        "class `light`",
-        "`flatbake` = `emitter`",
-    ] {
-        assert!(err.contains(words), "{words:?} missing from: {err}");
-    }
+    assert_says(
+        &run,
+        &[
+            "room.tmx",
+            "no light",
+            "class `light`",
+            "`flatbake` = `emitter`",
+        ],
+    );
     // Not the advice for painted images.
-    assert!(!err.contains("palette"), "{err}");
+    assert!(!stderr(&run).contains("palette"), "{}", stderr(&run));
 }
