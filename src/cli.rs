@@ -571,11 +571,6 @@ pub fn batch_options(a: &BakeArgs) -> Result<BatchOptions, String> {
             "--directional needs the flatland kernel and the fast gather: leave out --kernel paper and --gather naive".into(),
         );
     }
-    if opts.directional && !opts.texels.is_one_point() {
-        return Err(
-            "--directional is baked at one texel per pixel only: leave out --texels-per-pixel and --texel-samples".into(),
-        );
-    }
     Ok(match o.engine {
         Some(e) => opts.with_engine(e.into()),
         None => opts,

@@ -165,6 +165,119 @@ fn lone_emitter_moments_are_the_integrals_over_its_angles() {
     eprintln!("worst error of the exact presets, relative to the mean: {worst_exact:.2e}");
 }
 
+/// At every texel density a texel's mean and moments are the averages of
+/// the lone emitter's closed-form integrals over the texel's quadrature
+/// points on the floor (the midpoints of its `s x s` grid, or below one
+/// texel per pixel the centres of its floor pixels); texels without floor
+/// have no moments. A closed room's moments vanish at every density too.
+#[test]
+fn moments_at_every_density_are_texel_averages_of_the_integrals() {
+    use flatbake_core::bake::texels::{Density, TexelOptions, Walls, bake_texels};
+    let (w, h) = (20usize, 15usize);
+    let mut rows = vec![String::from("...................."); h];
+    for row in &mut rows[6..8] {
+        row.replace_range(8..11, "LLL");
+    }
+    let e = 3.0;
+    let lvl = ascii(&refs(&rows), &[('L', light(e, 0.0))]);
+    let corners = [[8.0, 6.0], [11.0, 6.0], [11.0, 8.0], [8.0, 8.0]];
+    let mut settings = directional(Settings::new(Quality::Normal));
+    settings.knobs.lattice = None;
+    let mut worst: f64 = 0.0;
+    for (density, samples) in [
+        (Density::Up(2), None),
+        (Density::Up(4), Some(1)),
+        (Density::Up(1), Some(3)),
+        (Density::Down(2), None),
+        (Density::Down(3), Some(2)),
+    ] {
+        let t = TexelOptions {
+            density,
+            samples,
+            walls: Walls::Lit,
+        };
+        let tb = bake_texels(&lvl, &settings, &t, &quiet, &|_| {}).unwrap();
+        let dir = tb
+            .baked
+            .directional
+            .as_ref()
+            .expect("moments at every density");
+        let (tw, th) = (tb.level.width, tb.level.height);
+        assert_eq!((dir.width, dir.height), (tw, th));
+        assert_eq!(dir.cos.len(), tw * th);
+        // Quadrature pixels per painted pixel and per texel side.
+        let k = t.scale();
+        let block = match density {
+            Density::Up(_) => t.samples() as usize,
+            Density::Down(m) => m as usize * t.samples() as usize,
+        };
+        let mut floor_texels = 0;
+        for ty in 0..th {
+            for tx in 0..tw {
+                let mut want = [0.0; 3];
+                let mut n = 0;
+                for qy in ty * block..((ty + 1) * block).min(h * k) {
+                    for qx in tx * block..((tx + 1) * block).min(w * k) {
+                        let p = [(qx as f64 + 0.5) / k as f64, (qy as f64 + 0.5) / k as f64];
+                        if lvl.cell(qx / k, qy / k) != Cell::Floor {
+                            continue;
+                        }
+                        let (a, b) = extent(p, &corners);
+                        let m = [b - a, b.sin() - a.sin(), a.cos() - b.cos()];
+                        for c in 0..3 {
+                            want[c] += e * m[c] / TAU;
+                        }
+                        n += 1;
+                    }
+                }
+                let i = ty * tw + tx;
+                let got = [
+                    tb.baked.lightmap.rgb[i][0] as f64,
+                    dir.cos[i][0] as f64,
+                    dir.sin[i][0] as f64,
+                ];
+                if n == 0 {
+                    assert_eq!(
+                        [got[1], got[2]],
+                        [0.0, 0.0],
+                        "{density:?} texel ({tx},{ty})"
+                    );
+                    continue;
+                }
+                floor_texels += 1;
+                let want = want.map(|v| v / n as f64);
+                for c in 0..3 {
+                    let err = (got[c] - want[c]).abs() / want[0];
+                    worst = worst.max(err);
+                    assert!(
+                        err < 1e-5,
+                        "{density:?} samples {samples:?} texel ({tx},{ty}) component {c}: {} vs {} (mean {})",
+                        got[c],
+                        want[c],
+                        want[0]
+                    );
+                }
+            }
+        }
+        assert!(
+            floor_texels * 2 > tw * th,
+            "{density:?}: {floor_texels} floor texels"
+        );
+        // A closed room at the same layout: no first moment anywhere.
+        let room_lvl = ascii(&refs(&room(13, 9)), &[('#', light(0.7, 0.5))]);
+        let tb = bake_texels(&room_lvl, &settings, &t, &quiet, &|_| {}).unwrap();
+        let dir = tb.baked.directional.as_ref().unwrap();
+        for v in dir.cos.iter().chain(&dir.sin) {
+            assert!(
+                v[0].abs() < 1e-6 * 1.4,
+                "{density:?}: closed room moment {}",
+                v[0]
+            );
+        }
+    }
+    eprintln!("worst texel error relative to the mean: {worst:.2e}");
+}
+
 /// Two equal lights facing each other across a symmetric room: at the
 /// pixel midway between them (and on the room's horizontal axis) the first
 /// moment vanishes, and everywhere the moments mirror. Walls reflect, so
@@ -413,6 +526,84 @@ fn bake_directional_writes_its_files() {
     assert_says(&o, &["room.normals.png", "5x5"]);
 }
 
+/// At another texel density the normal map is painted pixel for pixel (or
+/// texel for texel of the lightmap): the lit preview is at the lightmap's
+/// size, a flat map leaves it the lit image, and a map of neither size is
+/// an error naming both. A relight with `--level` reads it the same way.
+#[test]
+fn normal_maps_follow_the_texel_density() {
+    let dir = tempfile::tempdir().unwrap();
+    let levels = dir.path().join("levels");
+    std::fs::create_dir_all(&levels).unwrap();
+    write_room(&levels, "room", true);
+    let flat = |w: u32, h: u32| image::RgbImage::from_pixel(w, h, image::Rgb([128, 128, 255]));
+    for (density, (w, h), (tw, th)) in [
+        ("2", (24u32, 16u32), (48u32, 32u32)),
+        ("2", (48, 32), (48, 32)),
+        ("1/2", (24, 16), (12, 8)),
+        ("1/4", (6, 4), (6, 4)),
+    ] {
+        flat(w, h).save(levels.join("room.normals.png")).unwrap();
+        let out = dir
+            .path()
+            .join(format!("out-{}-{w}", density.replace('/', "_")));
+        let o = flatbake(&[
+            "bake",
+            s(&levels.join("room.png")),
+            "--out",
+            s(&out),
+            "--quality",
+            "draft",
+            "--directional",
+            "--cache",
+            "--texels-per-pixel",
+            density,
+        ]);
+        assert_exit(&o, 0);
+        let lit = image::open(out.join("room.lit.png")).unwrap().into_rgba8();
+        let lit_n = image::open(out.join("room.lit-normals.png"))
+            .unwrap()
+            .into_rgba8();
+        assert_eq!(lit_n.dimensions(), (tw, th), "at {density} from {w}x{h}");
+        assert_eq!(lit.dimensions(), (tw, th));
+        for (a, b) in lit.pixels().zip(lit_n.pixels()) {
+            for k in 0..4 {
+                assert!((a.0[k] as i32 - b.0[k] as i32).abs() <= 1, "{a:?} vs {b:?}");
+            }
+        }
+        // The relight reads the map at the cache's density.
+        let relit = out.join("relit");
+        let o = flatbake(&[
+            "relight",
+            s(&out.join("room.flatbake")),
+            "--level",
+            s(&levels.join("room.png")),
+            "-o",
+            s(&relit),
+        ]);
+        assert_exit(&o, 0);
+        assert_eq!(
+            std::fs::read(relit.join("room.lit-normals.png")).unwrap(),
+            std::fs::read(out.join("room.lit-normals.png")).unwrap(),
+            "at {density}"
+        );
+    }
+    flat(30, 20).save(levels.join("room.normals.png")).unwrap();
+    let o = flatbake(&[
+        "bake",
+        s(&levels.join("room.png")),
+        "--out",
+        s(&dir.path().join("bad")),
+        "--quality",
+        "draft",
+        "--directional",
+        "--texels-per-pixel",
+        "2",
+    ]);
+    assert_exit(&o, 1);
+    assert_says(&o, &["room.normals.png", "30x20", "24x16", "48x32"]);
+}
+
 /// The radiosity a ray from `p` in direction `theta` (`+y` up) meets first:
 /// the patch mean of the edge face it hits (found by walking the pixel grid).
 fn first_hit(baked: &Baked, lvl: &Level, p: [f64; 2], theta: f64) -> f64 {
@@ -581,9 +772,15 @@ fn read_exr_channels(bytes: &[u8]) -> std::collections::BTreeMap<String, Vec<f32
 /// A room with two light groups, baked with layers and a cache: the
 /// layers' moments add up to the level's, the cache relights to the same
 /// bytes with the same emission, and to twice the moments with twice the
-/// emission of every light.
+/// emission of every light; at every texel density.
 #[test]
 fn layers_relight_and_caches_carry_the_moments() {
+    for density in ["1", "2", "1/2"] {
+        layers_relight_and_caches_carry_the_moments_at(density);
+    }
+}
+
+fn layers_relight_and_caches_carry_the_moments_at(density: &str) {
     let dir = tempfile::tempdir().unwrap();
     let levels = dir.path().join("levels");
     std::fs::create_dir_all(&levels).unwrap();
@@ -618,6 +815,8 @@ fn layers_relight_and_caches_carry_the_moments() {
         "--layers",
         "--cache",
         "--quiet",
+        "--texels-per-pixel",
+        density,
     ]);
     assert_exit(&o, 0);
     let read = |p: std::path::PathBuf| {
@@ -628,8 +827,9 @@ fn layers_relight_and_caches_carry_the_moments() {
     let plain = image::open(out.join("duo.lightmap.exr"))
         .unwrap()
         .into_rgb32f();
+    assert_eq!(plain.len() as usize, 3 * full["R"].len(), "at {density}");
     for (i, p) in plain.pixels().enumerate() {
-        assert_eq!(full["R"][i], p.0[0]);
+        assert_eq!(full["R"][i], p.0[0], "at {density}");
     }
     let layers: Vec<_> = std::fs::read_dir(&out)
         .unwrap()

@@ -20,11 +20,13 @@
 //! The outputs encode the [`TexelBake::level`], the level at texel
 //! resolution (cells replicated for `N >= 1`; for `N < 1` a texel is floor
 //! when it holds any floor pixel), so padding, the lit image, layers and the
-//! relight cache all work on texels.
+//! relight cache all work on texels. The directional moments
+//! ([`Settings::directional`]) are integrals of the light like the mean, and
+//! are averaged over each texel's floor points the same way.
 
 use std::borrow::Cow;
 
-use super::{BakeError, Baked, Responses, Settings, bake_with_progress};
+use super::{BakeError, Baked, Directional, Responses, Settings, bake_with_progress};
 use crate::geometry::{self, Geometry};
 use crate::level::{Cell, Level};
 
@@ -103,6 +105,19 @@ impl Density {
         }
     }
 
+    /// The texel grid of a `width x height` painted level: `N` times its
+    /// size, or `1/m` of it rounded up (the last texels of a row or column
+    /// then cover the pixels that are left).
+    pub fn texels(self, width: usize, height: usize) -> (usize, usize) {
+        match self {
+            Density::Up(n) => (
+                width.saturating_mul(n as usize),
+                height.saturating_mul(n as usize),
+            ),
+            Density::Down(m) => (width.div_ceil(m as usize), height.div_ceil(m as usize)),
+        }
+    }
+
     /// The default quadrature points per texel side: 1 up to one texel per
     /// pixel (then a texel is a pixel, or holds whole pixels each sampled at
     /// its centre), 2 above (a texel is part of a pixel, and a shadow edge
@@ -178,12 +193,6 @@ impl TexelOptions {
             Density::Up(_) => s,
             Density::Down(m) => m as usize * s,
         }
-    }
-
-    /// True at one texel per pixel sampled at its centre (the walls may
-    /// still be written differently).
-    pub fn is_one_point(&self) -> bool {
-        self.density == Density::Up(1) && self.samples() == 1
     }
 
     /// True when the plain bake is the answer, byte for byte.
@@ -284,13 +293,6 @@ pub fn bake_texels(
             scale: 1,
         });
     }
-    if settings.directional && !texels.is_one_point() {
-        // The moments are gathered per point of the upscaled level; they are
-        // not yet averaged per texel.
-        return Err(BakeError::Unsupported(
-            "directional lightmaps are baked at one texel per pixel only (leave out --texels-per-pixel and --texel-samples with --directional)",
-        ));
-    }
     let k = texels.scale();
     // The upscaled level is allocated before the bake's own memory check:
     // refused here, from its pixels alone, when that is already too much.
@@ -322,10 +324,24 @@ pub fn bake_texels(
                 layout.filter(img, |cell| glow_unit(cell, m))
             })
             .collect();
+        // The moments are integrals of the light like the mean: a texel's
+        // are their average over its floor points.
+        let moments = r
+            .moments
+            .iter()
+            .map(|img| {
+                let [c, s] = [0, 1].map(|k| {
+                    let v: Vec<f32> = img.iter().map(|m| m[k]).collect();
+                    layout.floor_mean(&v)
+                });
+                c.into_iter().zip(s).map(|(c, s)| [c, s]).collect()
+            })
+            .collect();
         let resp = Responses {
             width: layout.tw,
             height: layout.th,
             images,
+            moments,
             ..r.clone()
         };
         // As in the plain bake: the lightmap is the responses' sum, so that
@@ -336,6 +352,9 @@ pub fn bake_texels(
             .map(|&m| level.materials[m].emission)
             .collect();
         baked.lightmap.rgb = resp.combine(&e);
+        if baked.directional.is_some() {
+            baked.directional = resp.combine_moments(&e);
+        }
         baked.responses = Some(resp);
     } else {
         let rgb = &baked.lightmap.rgb;
@@ -345,6 +364,9 @@ pub fn bake_texels(
         };
         let [r, g, b] = [ch(0), ch(1), ch(2)];
         baked.lightmap.rgb = (0..r.len()).map(|i| [r[i], g[i], b[i]]).collect();
+        if let Some(d) = &mut baked.directional {
+            *d = layout.floor_moments(d);
+        }
     }
     baked.lightmap.width = layout.tw;
     baked.lightmap.height = layout.th;
@@ -506,6 +528,43 @@ impl Layout {
         out
     }
 
+    /// The mean of `img` over each texel's floor points; 0 on texels
+    /// without floor.
+    fn floor_mean(&self, img: &[f32]) -> Vec<f32> {
+        let mut out = vec![0f32; self.tw * self.th];
+        for ty in 0..self.th {
+            for tx in 0..self.tw {
+                let (mut sum, mut n) = (0f64, 0u32);
+                for i in self.pixels(tx, ty) {
+                    if self.cells[i] == Cell::Floor {
+                        sum += img[i] as f64;
+                        n += 1;
+                    }
+                }
+                if n > 0 {
+                    out[ty * self.tw + tx] = (sum / n as f64) as f32;
+                }
+            }
+        }
+        out
+    }
+
+    /// The moments of the baked level at texel resolution: per texel their
+    /// mean over its floor points (the area average of the light's
+    /// moments, as the lightmap's texel is of its mean).
+    fn floor_moments(&self, d: &Directional) -> Directional {
+        let mut out = Directional::zero(self.tw, self.th);
+        for (src, dst) in [(&d.cos, &mut out.cos), (&d.sin, &mut out.sin)] {
+            for c in 0..3 {
+                let img: Vec<f32> = src.iter().map(|v| v[c]).collect();
+                for (t, v) in self.floor_mean(&img).into_iter().enumerate() {
+                    dst[t][c] = v;
+                }
+            }
+        }
+        out
+    }
+
     /// The level at texel resolution: for each texel, floor if any of its
     /// points is floor, else the material of its first exposed (or else
     /// first) solid point, else void; albedo the mean over its floor points.
@@ -553,15 +612,7 @@ impl Layout {
     }
 }
 
-/// The texel grid of `level` at `texels`' density: `N` times the painted
-/// size, or `1/m` of it rounded up (the last texels of a row or column then
-/// cover the pixels that are left).
+/// The texel grid of `level` at `texels`' density ([`Density::texels`]).
 pub fn texel_size(texels: &TexelOptions, level: &Level) -> (usize, usize) {
-    match texels.density {
-        Density::Up(n) => (level.width * n as usize, level.height * n as usize),
-        Density::Down(m) => (
-            level.width.div_ceil(m as usize),
-            level.height.div_ceil(m as usize),
-        ),
-    }
+    texels.density.texels(level.width, level.height)
 }

@@ -623,6 +623,7 @@ pub fn bake_one(path: &Path, opts: &BatchOptions, observer: &dyn Observer) -> Re
     let occluder_geometry = opts
         .occluders
         .map(|_| texel_bake.painted_geometry(&level).into_owned());
+    let painted = [level.width, level.height];
     let (baked, level) = (texel_bake.baked, texel_bake.level);
     let mut report = baked.report;
     report.timings.load = load;
@@ -650,6 +651,7 @@ pub fn bake_one(path: &Path, opts: &BatchOptions, observer: &dyn Observer) -> Re
         if opts.cache {
             let cache = Cache::new(
                 &level,
+                (painted, opts.texels.density),
                 resp,
                 &report,
                 inputs.image_hash.clone(),
@@ -670,8 +672,8 @@ pub fn bake_one(path: &Path, opts: &BatchOptions, observer: &dyn Observer) -> Re
         let normals = match output::directional::normal_map_beside(path) {
             Some(p) => Some(output::directional::NormalMap::read(
                 &p,
-                level.width,
-                level.height,
+                painted,
+                opts.texels.density,
             )?),
             None => None,
         };

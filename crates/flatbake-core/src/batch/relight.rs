@@ -167,8 +167,8 @@ pub fn relight(cache_path: &Path, opts: &RelightOptions) -> Result<Report> {
         {
             Some(p) => Some(output::directional::NormalMap::read(
                 &p,
-                level.width,
-                level.height,
+                cache.painted,
+                cache.density,
             )?),
             None => None,
         };

@@ -19,8 +19,8 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::bake::Responses;
 use crate::bake::report::Report;
+use crate::bake::{Density, Responses};
 use crate::level::material::{Material, MaterialKind, hex_color};
 use crate::level::{Cell, Level};
 use crate::output::{Depth, OutputOptions};
@@ -33,7 +33,7 @@ pub const MAX_CACHE_BYTES: u64 = 8 << 30;
 /// First bytes of every cache file.
 pub const MAGIC: &[u8; 16] = b"flatbake-cache\n\0";
 /// Bumped whenever [`Cache`] changes shape.
-pub const FORMAT: u32 = 3;
+pub const FORMAT: u32 = 4;
 /// The flatbake version writing and reading caches.
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 
@@ -115,11 +115,15 @@ pub enum CacheError {
 pub struct Cache {
     /// The level's name.
     pub level: String,
-    /// Width in pixels.
+    /// Width in texels (pixels at one texel per pixel).
     pub width: usize,
-    /// Height in pixels.
+    /// Height in texels.
     pub height: usize,
-    /// Per pixel: 0 void, 1 floor, `2 + m` solid of material `m`.
+    /// The level's size as painted, in pixels (width, height).
+    pub painted: [usize; 2],
+    /// Texels per painted pixel of the bake.
+    pub density: Density,
+    /// Per texel: 0 void, 1 floor, `2 + m` solid of material `m`.
     pub cells: Vec<u32>,
     /// Linear floor albedo per pixel.
     pub albedo: Vec<[f32; 3]>,
@@ -143,8 +147,11 @@ pub struct Cache {
 
 impl Cache {
     /// Captures a baked level.
+    /// `level` is the level at texel resolution, `grid` its painted size
+    /// and the texel density.
     pub fn new(
         level: &Level,
+        grid: ([usize; 2], Density),
         responses: Responses,
         report: &Report,
         image_hash: String,
@@ -155,6 +162,8 @@ impl Cache {
             level: level.name.clone(),
             width: level.width,
             height: level.height,
+            painted: grid.0,
+            density: grid.1,
             cells: level
                 .cells
                 .iter()
@@ -264,7 +273,9 @@ impl Cache {
             return Err(damaged("the level has no pixels"));
         }
         let r = &cache.responses;
+        let [pw, ph] = cache.painted;
         if cache.cells.len() != n
+            || cache.density.texels(pw, ph) != (cache.width, cache.height)
             || cache.report.size != [cache.width, cache.height]
             || cache.albedo.len() != n
             || r.width != cache.width
@@ -381,6 +392,8 @@ mod tests {
             level: "tiny".into(),
             width: 2,
             height: 1,
+            painted: [2, 1],
+            density: Density::Up(1),
             cells: vec![1, 3],
             albedo: vec![[0.5; 3]; 2],
             materials: vec![wall, lamp],

@@ -16,7 +16,7 @@ use ::image::DynamicImage;
 
 use super::files::describe_io;
 use super::{Encoded, OutputError, OutputKind, OutputOptions, image};
-use crate::bake::{Directional, Lightmap};
+use crate::bake::{Density, Directional, Lightmap};
 use crate::level::{Cell, Level};
 
 /// `cot` of the elevation the baked light is taken to arrive at when a
@@ -75,21 +75,81 @@ impl NormalMap {
         })
     }
 
-    /// Reads `path`, which must be `width x height`.
-    pub fn read(path: &Path, width: usize, height: usize) -> Result<NormalMap, OutputError> {
+    /// Reads `path` for a level painted `painted` pixels (width, height)
+    /// and baked at `density`: a normal map painted pixel for pixel, or one
+    /// texel for texel of the lightmap; the first is brought to the texel
+    /// grid ([`NormalMap::to_texels`]).
+    pub fn read(
+        path: &Path,
+        painted: [usize; 2],
+        density: Density,
+    ) -> Result<NormalMap, OutputError> {
         let fail = |message: String| OutputError::NormalMap {
             path: path.to_path_buf(),
             message,
         };
         let bytes = std::fs::read(path).map_err(|e| fail(describe_io(&e)))?;
         let map = NormalMap::decode(&bytes).map_err(fail)?;
-        if (map.width, map.height) != (width, height) {
+        let [w, h] = painted;
+        let (tw, th) = density.texels(w, h);
+        if (map.width, map.height) == (tw, th) {
+            return Ok(map);
+        }
+        if (map.width, map.height) != (w, h) {
+            let texels = if (tw, th) == (w, h) {
+                String::new()
+            } else {
+                format!(" or its lightmap's {tw}x{th} texels")
+            };
             return Err(fail(format!(
-                "it is {}x{} pixels but the level is {width}x{height}; a normal map must match its level pixel for pixel",
+                "it is {}x{} pixels but the level is {w}x{h}; a normal map must match its level pixel for pixel{texels}",
                 map.width, map.height
             )));
         }
-        Ok(map)
+        Ok(map.to_texels(density))
+    }
+
+    /// This map of a painted level at the texel grid of `density`: at `N`
+    /// texels per pixel each normal covers its pixel's `N x N` texels; at
+    /// `1/m` a texel's normal is the normalised mean of its `m x m` pixels'
+    /// (flat where they cancel).
+    pub fn to_texels(&self, density: Density) -> NormalMap {
+        let (tw, th) = density.texels(self.width, self.height);
+        let mut normals = vec![[0.0, 0.0, 1.0]; tw * th];
+        for ty in 0..th {
+            for tx in 0..tw {
+                let n = match density {
+                    Density::Up(n) => {
+                        let (x, y) = (tx / n as usize, ty / n as usize);
+                        self.normals[y * self.width + x]
+                    }
+                    Density::Down(m) => {
+                        let m = m as usize;
+                        let mut sum = [0f32; 3];
+                        for y in ty * m..((ty + 1) * m).min(self.height) {
+                            for x in tx * m..((tx + 1) * m).min(self.width) {
+                                let v = self.normals[y * self.width + x];
+                                for c in 0..3 {
+                                    sum[c] += v[c];
+                                }
+                            }
+                        }
+                        let len = (sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]).sqrt();
+                        if len > 1e-6 {
+                            sum.map(|c| c / len)
+                        } else {
+                            [0.0, 0.0, 1.0]
+                        }
+                    }
+                };
+                normals[ty * tw + tx] = n;
+            }
+        }
+        NormalMap {
+            width: tw,
+            height: th,
+            normals,
+        }
     }
 }
 
@@ -259,4 +319,39 @@ pub fn direction_colour(mean: f32, cos: f32, sin: f32) -> [u8; 3] {
         _ => [v, p, q],
     };
     rgb.map(|c| (c * 255.0).round() as u8)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn map(width: usize, height: usize, normals: Vec<[f32; 3]>) -> NormalMap {
+        NormalMap {
+            width,
+            height,
+            normals,
+        }
+    }
+
+    #[test]
+    fn normals_are_replicated_above_one_texel_per_pixel() {
+        let (l, r) = ([0.6, 0.0, 0.8], [0.0, -0.6, 0.8]);
+        let t = map(2, 1, vec![l, r]).to_texels(Density::Up(2));
+        assert_eq!((t.width, t.height), (4, 2));
+        assert_eq!(t.normals, vec![l, l, r, r, l, l, r, r]);
+    }
+
+    #[test]
+    fn normals_are_averaged_below_one_texel_per_pixel() {
+        // A 3x2 map at 1/2: texel 0 the mean of four, texel 1 of the last
+        // column's two, which cancel in x and y: flat.
+        let (a, b) = ([0.6, 0.0, 0.8], [-0.6, 0.0, 0.8]);
+        let t = map(3, 2, vec![a, a, a, a, a, b]).to_texels(Density::Down(2));
+        assert_eq!((t.width, t.height), (2, 1));
+        assert!((t.normals[0][0] - 0.6).abs() < 1e-6 && (t.normals[0][2] - 0.8).abs() < 1e-6);
+        assert_eq!(t.normals[1], [0.0, 0.0, 1.0]);
+        // Opposite normals in the plane cancel to nothing: flat too.
+        let t = map(2, 1, vec![[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]]).to_texels(Density::Down(2));
+        assert_eq!(t.normals, vec![[0.0, 0.0, 1.0]]);
+    }
 }
