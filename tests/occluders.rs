@@ -292,6 +292,19 @@ fn bake_with_occluders_writes_json_svg_and_a_godot_resource() {
     );
     assert_eq!(tres.matches("closed = true").count(), polys.len());
     assert_eq!(tres.matches("PackedVector2Array(").count(), polys.len());
+    let parsed = godot4_tres(&tres);
+    assert_eq!(parsed.len(), polys.len(), "{tres}");
+    for (p, (closed, cull, pts)) in polys.iter().zip(&parsed) {
+        let want: Vec<f64> = p["points"]
+            .as_array()
+            .expect("points")
+            .iter()
+            .flat_map(|q| [q[0].as_f64().expect("x"), q[1].as_f64().expect("y")])
+            .collect();
+        assert_eq!(pts, &want, "the .tres polygon is the JSON one");
+        assert!(*closed, "closed polygons occlude from every side");
+        assert_eq!(*cull, 0, "culling off, as documented");
+    }
     let svg = std::fs::read_to_string(out.join("room.occluders.svg")).expect("svg");
     assert!(svg.contains("viewBox=\"0 0 24 16\""));
     assert_eq!(svg.matches("<polygon ").count(), polys.len());
@@ -341,4 +354,111 @@ fn a_negative_tolerance_is_refused() {
     );
     assert_exit(&o, 2);
     assert_says(&o, &["--occluder-tolerance"]);
+}
+
+/// Reads a Godot 4 text resource as `to_tres` should write it and as Godot
+/// 4's text resource format and `OccluderPolygon2D` class define it (the
+/// file was never loaded in Godot; Godot 3 cannot read `format=3`):
+///
+/// - the first line is the descriptor `[gd_resource type="Resource"
+///   load_steps=N format=3]`, `N` the number of sub-resources plus one;
+/// - then one `[sub_resource type="OccluderPolygon2D" id="..."]` section per
+///   polygon, with unique string ids, holding only `OccluderPolygon2D`'s
+///   properties: `closed` (bool, default `true`), `cull_mode` (0, 1 or 2,
+///   default 0: disabled) and `polygon` (a `PackedVector2Array` of an even
+///   number of plain numbers, at least three points);
+/// - last the `[resource]` section, whose only property `metadata/occluders`
+///   is an array that lists every sub-resource as `SubResource("id")`, once
+///   each, in the order of the sections;
+/// - every property line is `key = value`, sections are separated by one
+///   blank line, and the file ends with a newline.
+///
+/// Returns `(closed, cull_mode, polygon)` per sub-resource, in order.
+fn godot4_tres(text: &str) -> Vec<(bool, i64, Vec<f64>)> {
+    assert!(text.ends_with("]\n"), "ends with the metadata line: {text}");
+    let mut sections = text.trim_end_matches('\n').split("\n\n");
+    let head = sections.next().expect("descriptor");
+    let mut ids = Vec::new();
+    let mut out = Vec::new();
+    let mut listed = None;
+    for section in sections {
+        let mut lines = section.lines();
+        let header = lines.next().expect("section header");
+        let props: Vec<(&str, &str)> = lines
+            .map(|l| {
+                l.split_once(" = ")
+                    .unwrap_or_else(|| panic!("not `key = value`: {l:?}"))
+            })
+            .collect();
+        if header == "[resource]" {
+            assert!(listed.is_none(), "one [resource] section");
+            assert_eq!(props.len(), 1, "{section}");
+            assert_eq!(props[0].0, "metadata/occluders");
+            let list = props[0].1;
+            let inner = list
+                .strip_prefix('[')
+                .and_then(|l| l.strip_suffix(']'))
+                .unwrap_or_else(|| panic!("an array: {list}"));
+            let refs: Vec<String> = inner
+                .split(", ")
+                .filter(|r| !inner.is_empty() || !r.is_empty())
+                .map(|r| {
+                    r.strip_prefix("SubResource(\"")
+                        .and_then(|r| r.strip_suffix("\")"))
+                        .unwrap_or_else(|| panic!("a SubResource: {r}"))
+                        .to_string()
+                })
+                .collect();
+            listed = Some(refs);
+            continue;
+        }
+        assert!(listed.is_none(), "sub-resources come before [resource]");
+        let id = header
+            .strip_prefix("[sub_resource type=\"OccluderPolygon2D\" id=\"")
+            .and_then(|h| h.strip_suffix("\"]"))
+            .unwrap_or_else(|| panic!("an OccluderPolygon2D sub-resource: {header}"));
+        assert!(!id.is_empty() && !id.contains('"'), "{header}");
+        assert!(!ids.contains(&id.to_string()), "id {id} twice");
+        ids.push(id.to_string());
+        let (mut closed, mut cull, mut polygon) = (true, 0, None);
+        for (key, value) in props {
+            match key {
+                "closed" => {
+                    closed = match value {
+                        "true" => true,
+                        "false" => false,
+                        v => panic!("closed = {v}"),
+                    }
+                }
+                "cull_mode" => {
+                    cull = value.parse().expect("cull_mode an integer");
+                    assert!((0..=2).contains(&cull), "cull_mode = {cull}");
+                }
+                "polygon" => {
+                    let inner = value
+                        .strip_prefix("PackedVector2Array(")
+                        .and_then(|v| v.strip_suffix(')'))
+                        .unwrap_or_else(|| panic!("polygon = {value}"));
+                    let nums: Vec<f64> = inner
+                        .split(", ")
+                        .map(|n| n.parse().unwrap_or_else(|_| panic!("a number: {n:?}")))
+                        .collect();
+                    assert!(nums.len() % 2 == 0 && nums.len() >= 6, "{value}");
+                    assert!(polygon.is_none(), "polygon twice");
+                    polygon = Some(nums);
+                }
+                k => panic!("OccluderPolygon2D has no property {k:?}"),
+            }
+        }
+        out.push((closed, cull, polygon.expect("a polygon")));
+    }
+    assert_eq!(
+        head,
+        format!(
+            "[gd_resource type=\"Resource\" load_steps={} format=3]",
+            ids.len() + 1
+        )
+    );
+    assert_eq!(listed.expect("a [resource] section"), ids);
+    out
 }
