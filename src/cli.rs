@@ -846,10 +846,16 @@ fn detail_lines(r: &Report) -> Vec<String> {
     vec![
         format!("  detail: {}", r.summary()),
         format!(
-            "  size: {} x {} pixels, {} floor pixels, {} edges, {} patches, {} form-factor entries, solver {}, residual {:.1e}",
-            r.size[0],
-            r.size[1],
-            c.floor_pixels,
+            "  size: {}, {}, {} edges, {} patches, {} form-factor entries, solver {}, residual {:.1e}",
+            r.size_words(),
+            if r.painted_pixels_are_points() && r.counts.floor_texels == c.floor_pixels {
+                format!("{} floor pixels", c.floor_pixels)
+            } else {
+                format!(
+                    "{} floor texels, {} floor points",
+                    c.floor_texels, c.floor_pixels
+                )
+            },
             c.edges,
             c.patches,
             c.form_factor_entries,

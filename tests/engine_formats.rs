@@ -671,3 +671,169 @@ fn the_moments_of_a_directional_bake_go_into_signed_ktx2_files_with_the_lightmap
     // moments of both signs, and the negative ones kept.
     assert!(negatives > 0);
 }
+
+/// Below one texel per pixel a texel's coverage is the share of its
+/// painted pixels that are floor, in the EXR's `A`, the KTX2's alpha and
+/// the PNG's alpha, while a texel with any floor is floor: its light is
+/// the floor's, not padding.
+#[test]
+fn coverage_below_density_one_is_the_floor_share_of_each_texel() {
+    use flatbake_core::bake::texels::{Density, TexelOptions, bake_texels};
+    let lvl = level();
+    let (pw, ph) = (lvl.width, lvl.height);
+    for m in [2usize, 3] {
+        let t = bake_texels(
+            &lvl,
+            &Settings::new(Quality::Draft),
+            &TexelOptions {
+                density: Density::Down(m as u32),
+                ..TexelOptions::default()
+            },
+            &quiet,
+            &|_| {},
+        )
+        .expect("bake");
+        let (tl, map) = (&t.level, &t.baked.lightmap);
+        let (tw, th) = (tl.width, tl.height);
+        assert_eq!((tw, th), (pw.div_ceil(m), ph.div_ceil(m)));
+        // The floor's share of each texel, counted on the painted level.
+        let share: Vec<f64> = (0..tw * th)
+            .map(|i| {
+                let (tx, ty) = (i % tw, i / tw);
+                let (mut floor, mut all) = (0, 0);
+                for y in ty * m..((ty + 1) * m).min(ph) {
+                    for x in tx * m..((tx + 1) * m).min(pw) {
+                        all += 1;
+                        floor += usize::from(lvl.cells[y * pw + x] == Cell::Floor);
+                    }
+                }
+                floor as f64 / all as f64
+            })
+            .collect();
+        let partial = share.iter().filter(|&&f| f > 0.0 && f < 1.0).count();
+        assert!(partial > 4, "1/{m}: the level wants texels part floor");
+        let opts = OutputOptions {
+            hdr: true,
+            ktx2: true,
+            padding: 2,
+            ..OutputOptions::default()
+        };
+        let files = encode_images(tl, map, &opts).expect("encode");
+        let exr = image::load_from_memory_with_format(
+            file(&files, OutputKind::Hdr),
+            image::ImageFormat::OpenExr,
+        )
+        .expect("EXR")
+        .into_rgba32f();
+        let ktx = read_ktx2(file(&files, OutputKind::Ktx2), tw as u32, th as u32);
+        let png = image::load_from_memory(file(&files, OutputKind::Lightmap))
+            .expect("png")
+            .into_rgba8();
+        for i in 0..tw * th {
+            let f = share[i];
+            let (x, y) = ((i % tw) as u32, (i / tw) as u32);
+            assert!(
+                (exr.get_pixel(x, y).0[3] as f64 - f).abs() <= 1e-7,
+                "1/{m} EXR A at {i}"
+            );
+            assert!(
+                (ktx[i][3] as f64 - f).abs() <= f * 2f64.powi(-11),
+                "1/{m} KTX2 A at {i}"
+            );
+            assert_eq!(
+                png.get_pixel(x, y).0[3],
+                (f * 255.0).round() as u8,
+                "1/{m} PNG A at {i}"
+            );
+            // Any floor makes the texel floor: its light, never padding.
+            assert_eq!(tl.cells[i] == Cell::Floor, f > 0.0, "1/{m} cell at {i}");
+            if f > 0.0 {
+                let p = exr.get_pixel(x, y).0;
+                assert_eq!([p[0], p[1], p[2]], map.rgb[i], "1/{m} light at {i}");
+            }
+        }
+    }
+}
+
+/// `--walls` reaches the EXR and the KTX2 as it reaches the PNG: unpadded,
+/// every solid texel holds what the walls mode says (the face's radiosity,
+/// the emitter's emission, 0); padded, texels within the width hold the
+/// padding and the wall-face texels beyond it keep the walls' values.
+#[test]
+fn walls_reach_the_exr_and_the_ktx2() {
+    use flatbake_core::bake::texels::{Density, TexelOptions, Walls, bake_texels};
+    let lvl = level();
+    let emission = 20.0f32;
+    for walls in [Walls::Lit, Walls::Glow, Walls::Dark] {
+        for (density, padding) in [(1u32, 0u32), (4, 0), (4, 1)] {
+            let t = bake_texels(
+                &lvl,
+                &Settings::new(Quality::Draft),
+                &TexelOptions {
+                    density: Density::Up(density),
+                    walls,
+                    ..TexelOptions::default()
+                },
+                &quiet,
+                &|_| {},
+            )
+            .expect("bake");
+            let (tl, map) = (&t.level, &t.baked.lightmap);
+            let (tw, th) = (tl.width, tl.height);
+            let opts = OutputOptions {
+                hdr: true,
+                ktx2: true,
+                padding,
+                ..OutputOptions::default()
+            };
+            let files = encode_images(tl, map, &opts).expect("encode");
+            let exr = image::load_from_memory_with_format(
+                file(&files, OutputKind::Hdr),
+                image::ImageFormat::OpenExr,
+            )
+            .expect("EXR")
+            .into_rgba32f();
+            let exr: Vec<[f32; 3]> = exr.pixels().map(|p| [p.0[0], p.0[1], p.0[2]]).collect();
+            let ktx = read_ktx2(file(&files, OutputKind::Ktx2), tw as u32, th as u32);
+            check_halves(&ktx, &exr);
+            let near_floor = |i: usize| {
+                let (x, y) = (i % tw, i / tw);
+                let p = padding as usize;
+                (y.saturating_sub(p)..=(y + p).min(th - 1)).any(|yy| {
+                    (x.saturating_sub(p)..=(x + p).min(tw - 1))
+                        .any(|xx| tl.cells[yy * tw + xx] == Cell::Floor)
+                })
+            };
+            let (mut lit, mut glowing, mut kept) = (0, 0, 0);
+            for i in 0..tw * th {
+                let Cell::Solid(mat) = tl.cells[i] else {
+                    continue;
+                };
+                if padding > 0 && near_floor(i) {
+                    continue; // the padding's, checked in tests/padding.rs
+                }
+                kept += usize::from(padding > 0);
+                let v = exr[i];
+                assert_eq!(v, map.rgb[i], "{walls:?} density {density} texel {i}");
+                let emitter = tl.materials[mat as usize].emission[0] > 0.0;
+                match walls {
+                    Walls::Dark => assert_eq!(v, [0.0; 3]),
+                    Walls::Glow if emitter => {
+                        glowing += usize::from(v == [emission; 3]);
+                    }
+                    Walls::Glow => assert_eq!(v, [0.0; 3]),
+                    Walls::Lit => lit += usize::from(!emitter && v[0] > 0.0),
+                }
+            }
+            let what = format!("{walls:?} density {density} padding {padding}");
+            if padding > 0 {
+                assert!(kept > 0, "{what}: no wall texel beyond the padding");
+            }
+            match walls {
+                Walls::Glow => assert!(glowing > 0, "{what}: no glowing texel"),
+                Walls::Lit => assert!(lit > 0, "{what}: no lit wall texel"),
+                Walls::Dark => {}
+            }
+        }
+    }
+}

@@ -79,6 +79,7 @@ fn level(name: &str, rows: &[&str]) -> Level {
         warnings: vec![],
         lossy_format: None,
         origin: Default::default(),
+        floor_fraction: None,
     }
 }
 
@@ -262,7 +263,7 @@ fn lit_is_albedo_times_light_on_floor_and_the_lightmap_on_solids() {
 }
 
 #[test]
-fn exr_reads_back_exact_floats_unscaled_by_exposure_with_solid_and_void_zero() {
+fn exr_reads_back_exact_floats_unscaled_by_exposure_with_walls_as_the_png_and_void_zero() {
     let lvl = level("h", ROWS);
     let mut map = lightmap(&lvl);
     map.rgb[1] = [37.25, 1.0e-7, 3.333_333_3]; // HDR, tiny, not a short binary fraction
@@ -280,13 +281,19 @@ fn exr_reads_back_exact_floats_unscaled_by_exposure_with_solid_and_void_zero() {
     let (w, h, px) = read_lightmap_exr(&exr).expect("read exr");
     assert_eq!((w, h), (3, 3));
     for (i, p) in px.iter().enumerate() {
-        let want = if lvl.cells[i] == Cell::Floor {
-            map.rgb[i]
-        } else {
+        // Solid pixels hold what the lightmap holds there (the PNG's
+        // rule, what `--walls` put there); void 0.
+        let want = if lvl.cells[i] == Cell::Void {
             [0.0; 3]
+        } else {
+            map.rgb[i]
         };
         assert_eq!(*p, want, "pixel {i} ({:?})", lvl.cells[i]);
     }
+    assert!(
+        (0..px.len()).any(|i| matches!(lvl.cells[i], Cell::Solid(_)) && px[i] != [0.0; 3]),
+        "the level wants a lit wall pixel"
+    );
 }
 
 #[test]
@@ -447,10 +454,11 @@ fn rgbm_png_decodes_to_the_hdr_lightmap() {
     let px = rgba8(&dir.path().join("r.lightmap.rgbm.png"));
     for (i, p) in px.iter().enumerate() {
         let dec = rgbm_decode(*p);
-        let want = if lvl.cells[i] == Cell::Floor {
-            map.rgb[i]
-        } else {
+        // The EXR's values: walls as the lightmap holds them, void 0.
+        let want = if lvl.cells[i] == Cell::Void {
             [0.0; 3]
+        } else {
+            map.rgb[i]
         };
         for k in 0..3 {
             assert!(
@@ -699,6 +707,7 @@ fn an_empty_level_is_an_error_not_a_panic() {
         warnings: vec![],
         lossy_format: None,
         origin: Default::default(),
+        floor_fraction: None,
     };
     let map = Lightmap {
         width: 0,

@@ -7,7 +7,7 @@ use common::*;
 
 use flatbake_core::bake::{Settings, bake};
 use flatbake_core::output::{
-    OutputKind, OutputOptions, encode_images, hdr_pixels, rgbm_unity_decode, rgbm_unity_encode,
+    OutputKind, OutputOptions, encode_images, lightmap_pixels, rgbm_unity_decode, rgbm_unity_encode,
 };
 use flatbake_core::quality::Quality;
 
@@ -110,7 +110,7 @@ fn the_output_file_holds_the_lightmap() {
         .expect("written");
     assert_eq!(f.kind.file_name("room"), "room.lightmap.rgbm-unity.png");
     let img = image::load_from_memory(&f.bytes).expect("png").into_rgba8();
-    let hdr = hdr_pixels(&lvl, &map).expect("hdr");
+    let hdr = lightmap_pixels(&lvl, &map).expect("hdr");
     for (p, want) in img.pixels().zip(&hdr) {
         let got = unity_decode(p.0);
         for k in 0..3 {

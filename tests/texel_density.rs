@@ -631,3 +631,97 @@ fn cli_density_bake_relight_and_padding() {
     assert_exit(&o, EXIT_USAGE);
     assert_says(&o, &["texels per pixel", "1/16", "not 3/4"]);
 }
+
+/// The report tells the painted size, the texel grid and the quadrature
+/// points apart, in its JSON fields and in the verbose console line.
+#[test]
+fn the_report_counts_pixels_texels_and_points_apart() {
+    let rows = [
+        "################",
+        "#......LL......#",
+        "#..............#",
+        "#...##.........#",
+        "#...##....#....#",
+        "#.........#....#",
+        "#..............#",
+        "################",
+    ];
+    let lvl = ascii(&rows, &[('#', wall(0.5)), ('L', light(2.0, 0.2))]);
+    let settings = Settings::new(Quality::Draft);
+    let (w, h) = (lvl.width, lvl.height);
+    let floor = lvl.cells.iter().filter(|&&c| c == Cell::Floor).count();
+    for (d, samples) in [
+        (Density::Up(1), None),
+        (Density::Up(2), None),
+        (Density::Up(2), Some(3)),
+        (Density::Down(2), None),
+        (Density::Down(3), Some(2)),
+    ] {
+        let t = at(&lvl, &settings, &texels(d, samples, Walls::Lit));
+        let r = &t.baked.report;
+        let s = texels(d, samples, Walls::Lit).samples() as usize;
+        let (tw, th) = d.texels(w, h);
+        assert_eq!(r.painted_size, [w, h], "{d:?}");
+        assert_eq!(r.size, [tw, th], "{d:?}");
+        assert_eq!(r.texels_per_pixel, d.value(), "{d:?}");
+        let side = match d {
+            Density::Up(_) => s,
+            Density::Down(m) => m as usize * s,
+        };
+        assert_eq!(r.points_per_texel as usize, side * side, "{d:?}");
+        let floor_texels = t.level.cells.iter().filter(|&&c| c == Cell::Floor).count();
+        assert_eq!(r.counts.floor_texels, floor_texels, "{d:?}");
+        // The floor points: every painted floor pixel upscaled by k.
+        let k = match d {
+            Density::Up(n) => n as usize * s,
+            Density::Down(_) => s,
+        };
+        assert_eq!(r.counts.floor_pixels, floor * k * k, "{d:?}");
+        let words = r.size_words();
+        if d == Density::Up(1) && s == 1 {
+            assert_eq!(words, format!("{w} x {h} pixels"));
+        } else {
+            assert_eq!(
+                words,
+                format!(
+                    "{w} x {h} pixels, {tw} x {th} texels, {} points per texel",
+                    side * side
+                )
+            );
+        }
+    }
+    // The binary says it, and writes the fields.
+    let dir = tempfile::tempdir().unwrap();
+    write_room(dir.path(), "room", true);
+    let level = dir.path().join("room.png");
+    let out = dir.path().join("out");
+    let o = flatbake(&[
+        "bake",
+        s(&level),
+        "-o",
+        s(&out),
+        "--texels-per-pixel",
+        "2",
+        "--verbose",
+    ]);
+    assert_exit(&o, EXIT_OK);
+    let painted = image::open(&level).unwrap();
+    let (pw, ph) = (painted.width(), painted.height());
+    let said = format!(
+        "size: {pw} x {ph} pixels, {} x {} texels, 4 points per texel",
+        2 * pw,
+        2 * ph
+    );
+    let all = format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(all.contains(&said), "{said:?} not in:\n{all}");
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("room.report.json")).unwrap()).unwrap();
+    assert_eq!(r["painted_size"], serde_json::json!([pw, ph]));
+    assert_eq!(r["size"], serde_json::json!([2 * pw, 2 * ph]));
+    assert_eq!(r["texels_per_pixel"].as_f64(), Some(2.0));
+    assert_eq!(r["points_per_texel"].as_u64(), Some(4));
+}

@@ -67,6 +67,7 @@ pub fn ascii(rows: &[&str], legend: &[(char, Material)]) -> Level {
         warnings: vec![],
         lossy_format: None,
         origin: Default::default(),
+        floor_fraction: None,
     }
 }
 

@@ -423,6 +423,7 @@ pub fn bake_with_progress(
         edges: scene.geometry.edges.len(),
         patches: scene.patch_count(),
         floor_pixels: scene.floor_pixels.len(),
+        floor_texels: scene.floor_pixels.len(),
         form_factor_entries: transport.entries(),
         unreached_pixels: gathered.unreached,
         culled_pairs: transport.culled_pairs + gathered.culled_pairs,

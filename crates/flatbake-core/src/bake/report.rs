@@ -8,6 +8,10 @@ fn one() -> f64 {
     1.0
 }
 
+fn one_u32() -> u32 {
+    1
+}
+
 /// Seconds of wall time per stage.
 #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
 pub struct Timings {
@@ -34,12 +38,21 @@ pub struct Counts {
     pub edges: usize,
     /// Patches the edges are cut into.
     pub patches: usize,
-    /// Floor pixels, lit or not.
+    /// Floor points the bake gathered, lit or not: the floor pixels as
+    /// painted at one texel per pixel and one point per texel; at other
+    /// texel densities the floor pixels of the level baked upscaled, one per
+    /// quadrature point (see [`Report::points_per_texel`]).
     pub floor_pixels: usize,
+    /// Floor texels of the lightmap (a texel below one texel per pixel is
+    /// floor when it holds any floor pixel); `floor_pixels` at density 1
+    /// with one point per texel.
+    #[serde(default)]
+    pub floor_texels: usize,
     /// Non-zero entries of the form-factor matrix F.
     #[serde(default)]
     pub form_factor_entries: usize,
-    /// Floor pixels that no light path reaches (left at 0 without gathering).
+    /// Floor points (as counted in `floor_pixels`) that no light path
+    /// reaches (left at 0 without gathering).
     #[serde(default)]
     pub unreached_pixels: usize,
     /// Edge-pixel pairs skipped because they lie beyond the falloff reach.
@@ -91,8 +104,22 @@ pub struct Problem {
 pub struct Report {
     /// The level's name (its image's file stem).
     pub level: String,
-    /// Width and height in pixels.
+    /// Width and height of the lightmap in texels: the level's painted size
+    /// (`painted_size`) times the texel density, so the painted size at
+    /// one texel per pixel.
     pub size: [usize; 2],
+    /// Width and height of the level as painted, in pixels.
+    #[serde(default)]
+    pub painted_size: [usize; 2],
+    /// Texels per painted pixel along each axis (`--texels-per-pixel`:
+    /// 2 for 2, 0.25 for 1/4).
+    #[serde(default = "one")]
+    pub texels_per_pixel: f64,
+    /// Quadrature points per texel, where the light was gathered: `S x S`
+    /// per texel above density 1 (`--texel-samples S`), `(m S) x (m S)`
+    /// at density `1/m`, 1 at density 1 by default. A texel is their mean.
+    #[serde(default = "one_u32")]
+    pub points_per_texel: u32,
     /// The quality preset.
     pub quality: String,
     /// The transport kernel ("flatland" or "paper").
@@ -160,6 +187,9 @@ impl Report {
         Report {
             level: level.name.clone(),
             size: [level.width, level.height],
+            painted_size: [level.width, level.height],
+            texels_per_pixel: 1.0,
+            points_per_texel: 1,
             quality: settings.quality.name().into(),
             kernel: settings.kernel.name().into(),
             gather: settings.gather.name().into(),
@@ -211,8 +241,13 @@ impl Report {
                     _ => "bounce light (no wall that reflects is lit)".to_string(),
                 }),
                 "gather" if self.counts.unreached_pixels > 0 => push(format!(
-                    "{} floor pixel{} no light reaches (left dark)",
+                    "{} floor {}{} no light reaches (left dark)",
                     self.counts.unreached_pixels,
+                    if self.painted_pixels_are_points() {
+                        "pixel"
+                    } else {
+                        "point"
+                    },
                     if self.counts.unreached_pixels == 1 {
                         ""
                     } else {
@@ -235,6 +270,37 @@ impl Report {
             ));
         }
         out
+    }
+
+    /// True when the bake gathered one point per painted pixel (density 1
+    /// with one point per texel, or a density `1/m` with one point per
+    /// pixel), so `counts.floor_pixels` counts painted pixels.
+    pub fn painted_pixels_are_points(&self) -> bool {
+        let per_pixel =
+            self.points_per_texel as f64 * self.texels_per_pixel * self.texels_per_pixel;
+        (per_pixel - 1.0).abs() < 1e-9
+    }
+
+    /// The size line of the report, in words: the painted size, and when
+    /// they differ from it the texel grid and the quadrature points per
+    /// texel ("512 x 512 pixels, 1024 x 1024 texels, 4 points per texel").
+    pub fn size_words(&self) -> String {
+        let [pw, ph] = if self.painted_size == [0, 0] {
+            self.size
+        } else {
+            self.painted_size
+        };
+        let mut s = format!("{pw} x {ph} pixels");
+        if self.size != [pw, ph] || self.points_per_texel != 1 {
+            s.push_str(&format!(
+                ", {} x {} texels, {} point{} per texel",
+                self.size[0],
+                self.size[1],
+                self.points_per_texel,
+                if self.points_per_texel == 1 { "" } else { "s" }
+            ));
+        }
+        s
     }
 
     /// One-line human summary of what was simulated and what was skipped.

@@ -19,8 +19,10 @@
 //!
 //! The outputs encode the [`TexelBake::level`], the level at texel
 //! resolution (cells replicated for `N >= 1`; for `N < 1` a texel is floor
-//! when it holds any floor pixel), so padding, the lit image, layers and the
-//! relight cache all work on texels. The directional moments
+//! when it holds any floor pixel, and its [`Level::floor_fraction`] is the
+//! share of its painted pixels that are floor, the coverage the outputs
+//! write), so padding, the lit image, layers and the relight cache all work
+//! on texels. The directional moments
 //! ([`Settings::directional`]) are integrals of the light like the mean, and
 //! are averaged over each texel's floor points the same way.
 
@@ -370,10 +372,19 @@ pub fn bake_texels(
     }
     baked.lightmap.width = layout.tw;
     baked.lightmap.height = layout.th;
-    // The report speaks of the level as painted: its texel size, the
-    // falloff as given, the power per painted pixel of wall.
+    // The report speaks of the level as painted: its painted and texel
+    // sizes, the points per texel, the falloff as given, the power per
+    // painted pixel of wall (the floor counts stay the points gathered).
     let report = &mut baked.report;
     report.size = [layout.tw, layout.th];
+    report.painted_size = [level.width, level.height];
+    report.texels_per_pixel = texels.density.value();
+    report.points_per_texel = u32::try_from(layout.block * layout.block).unwrap_or(u32::MAX);
+    report.counts.floor_texels = texel_level
+        .cells
+        .iter()
+        .filter(|&&c| c == Cell::Floor)
+        .count();
     report.falloff = settings.falloff;
     let kf = k as f64;
     report.energy.emitted /= kf;
@@ -420,6 +431,8 @@ struct Layout {
     pw: usize,
     ph: usize,
     painted: Vec<Cell>,
+    /// `m` of density `1/m`: a texel's side in painted pixels.
+    down: Option<usize>,
 }
 
 impl Layout {
@@ -438,7 +451,35 @@ impl Layout {
             pw: level.width,
             ph: level.height,
             painted: level.cells.clone(),
+            down: match texels.density {
+                Density::Down(m) => Some(m as usize),
+                Density::Up(_) => None,
+            },
         }
+    }
+
+    /// Below one texel per pixel: for each texel, the fraction of the
+    /// painted pixels it holds that are floor (the last texels of a row or
+    /// column hold fewer pixels). `None` above, where a texel lies in one
+    /// painted pixel and is all floor or none.
+    fn floor_fraction(&self) -> Option<Vec<f32>> {
+        let m = self.down?;
+        let mut out = vec![0f32; self.tw * self.th];
+        for ty in 0..self.th {
+            for tx in 0..self.tw {
+                let (x0, y0) = (tx * m, ty * m);
+                let (x1, y1) = ((x0 + m).min(self.pw), (y0 + m).min(self.ph));
+                let mut floor = 0usize;
+                for y in y0..y1 {
+                    for x in x0..x1 {
+                        floor += usize::from(self.painted[y * self.pw + x] == Cell::Floor);
+                    }
+                }
+                let all = (x1 - x0) * (y1 - y0);
+                out[ty * self.tw + tx] = (floor as f64 / all.max(1) as f64) as f32;
+            }
+        }
+        Some(out)
     }
 
     /// For quadrature pixel `i` of a solid painted pixel: the quadrature
@@ -607,6 +648,7 @@ impl Layout {
             height: self.th,
             cells,
             albedo,
+            floor_fraction: self.floor_fraction(),
             ..level.clone()
         }
     }

@@ -288,6 +288,7 @@ pub(super) fn classify_pixels(
         warnings,
         lossy_format: None,
         origin: Default::default(),
+        floor_fraction: None,
     }
 }
 

@@ -264,6 +264,7 @@ impl Canvas {
             warnings: Vec::new(),
             lossy_format: None,
             origin,
+            floor_fraction: None,
         })
     }
 }

@@ -89,6 +89,13 @@ pub struct Level {
     /// What the level was made from, so that a message can say what to
     /// change there (a palette colour, a tile property, an entity).
     pub origin: Origin,
+    /// The fraction of each cell that is floor, where that is not simply 1
+    /// on floor and 0 elsewhere: a level at texel resolution below one
+    /// texel per pixel ([`crate::bake::texels`]), whose floor texel holds
+    /// some floor pixels and maybe some wall. What the lightmap outputs'
+    /// coverage channel holds ([`Level::coverage`]). `None` for levels as
+    /// painted.
+    pub floor_fraction: Option<Vec<f32>>,
 }
 
 /// What a [`Level`] was made from.
@@ -245,6 +252,31 @@ impl Level {
     /// The cell of pixel `(x, y)`, which must lie inside the level.
     pub fn cell(&self, x: usize, y: usize) -> Cell {
         self.cells[y * self.width + x]
+    }
+
+    /// The coverage of each cell, row-major: the fraction of it that is
+    /// floor ([`Level::floor_fraction`] when it has one of the right
+    /// length, else 1 on floor and 0 elsewhere). Never above 1, 0 on every
+    /// cell that is not floor.
+    pub fn coverage(&self) -> Vec<f32> {
+        match &self.floor_fraction {
+            Some(f) if f.len() == self.cells.len() => f
+                .iter()
+                .zip(&self.cells)
+                .map(|(&v, &c)| {
+                    if c == Cell::Floor && v.is_finite() {
+                        v.clamp(0.0, 1.0)
+                    } else {
+                        0.0
+                    }
+                })
+                .collect(),
+            _ => self
+                .cells
+                .iter()
+                .map(|&c| if c == Cell::Floor { 1.0 } else { 0.0 })
+                .collect(),
+        }
     }
 
     /// Builds a level from already-decoded RGBA pixels (row-major).

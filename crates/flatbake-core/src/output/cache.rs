@@ -33,7 +33,7 @@ pub const MAX_CACHE_BYTES: u64 = 8 << 30;
 /// First bytes of every cache file.
 pub const MAGIC: &[u8; 16] = b"flatbake-cache\n\0";
 /// Bumped whenever [`Cache`] changes shape.
-pub const FORMAT: u32 = 4;
+pub const FORMAT: u32 = 5;
 /// The flatbake version writing and reading caches.
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 
@@ -127,6 +127,9 @@ pub struct Cache {
     pub cells: Vec<u32>,
     /// Linear floor albedo per pixel.
     pub albedo: Vec<[f32; 3]>,
+    /// Per texel, the fraction that is floor ([`Level::floor_fraction`]);
+    /// empty when the cells say it (1 on floor, 0 elsewhere).
+    pub floor_fraction: Vec<f32>,
     /// The level's materials, as resolved from its palette.
     pub materials: Vec<Material>,
     /// blake3 of the level image file's bytes, hex.
@@ -174,6 +177,7 @@ impl Cache {
                 })
                 .collect(),
             albedo: level.albedo.clone(),
+            floor_fraction: level.floor_fraction.clone().unwrap_or_default(),
             materials: level.materials.clone(),
             image_hash,
             inputs_hash,
@@ -206,6 +210,7 @@ impl Cache {
             warnings: Vec::new(),
             lossy_format: None,
             origin: Default::default(),
+            floor_fraction: (!self.floor_fraction.is_empty()).then(|| self.floor_fraction.clone()),
         }
     }
 
@@ -278,6 +283,7 @@ impl Cache {
             || cache.density.texels(pw, ph) != (cache.width, cache.height)
             || cache.report.size != [cache.width, cache.height]
             || cache.albedo.len() != n
+            || !(cache.floor_fraction.is_empty() || cache.floor_fraction.len() == n)
             || r.width != cache.width
             || r.height != cache.height
             || r.images.len() != r.emitters.len() * r.rho_classes
@@ -396,6 +402,7 @@ mod tests {
             density: Density::Up(1),
             cells: vec![1, 3],
             albedo: vec![[0.5; 3]; 2],
+            floor_fraction: Vec::new(),
             materials: vec![wall, lamp],
             image_hash: String::new(),
             inputs_hash: String::new(),

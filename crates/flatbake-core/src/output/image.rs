@@ -184,57 +184,84 @@ pub(crate) fn sdr_image(
 }
 
 /// The padded lightmap at the chosen depth: `padded` (linear, row-major,
-/// see [`super::padding::pad`]) x exposure in sRGB, alpha the coverage
-/// (opaque on floor, transparent on padding, wall and void).
+/// see [`padded_hdr_pixels`]) x exposure in sRGB, alpha the coverage
+/// ([`Level::coverage`]: opaque on floor, transparent on padding, wall and
+/// void, the floor's share of the texel below one texel per pixel), rounded
+/// to the nearest code.
 pub(crate) fn padded_sdr_image(
     level: &Level,
     padded: &[[f32; 3]],
     opts: &OutputOptions,
 ) -> DynamicImage {
     let (w, h) = (level.width as u32, level.height as u32);
+    let coverage = level.coverage();
     let px = |x: u32, y: u32| {
         let i = y as usize * level.width + x as usize;
         (
             padded[i].map(|c| clean(c) * opts.exposure),
-            level.cells[i] == Cell::Floor,
+            coverage[i] as f64,
         )
     };
     match opts.depth {
         Depth::Eight => DynamicImage::ImageRgba8(ImageBuffer::from_fn(w, h, |x, y| {
-            let (c, floor) = px(x, y);
+            let (c, a) = px(x, y);
             Rgba([
                 srgb8(c[0]),
                 srgb8(c[1]),
                 srgb8(c[2]),
-                if floor { u8::MAX } else { 0 },
+                (a * 255.0).round() as u8,
             ])
         })),
         Depth::Sixteen => DynamicImage::ImageRgba16(ImageBuffer::from_fn(w, h, |x, y| {
-            let (c, floor) = px(x, y);
+            let (c, a) = px(x, y);
             Rgba([
                 srgb16(c[0]),
                 srgb16(c[1]),
                 srgb16(c[2]),
-                if floor { u16::MAX } else { 0 },
+                (a * 65535.0).round() as u16,
             ])
         })),
     }
 }
 
 /// The linear HDR lightmap padded by `texels` (see [`super::padding`]):
-/// [`hdr_pixels`] with the texels near the floor filled from it. With
-/// `texels == 0`, [`hdr_pixels`] itself.
+/// [`lightmap_pixels`] with the non-floor texels within `texels` of the
+/// floor filled from it ([`super::padding::pad_over`]); floor texels and
+/// texels further away keep their values (what `--walls` put on wall
+/// faces, 0 on void). With `texels == 0`, [`lightmap_pixels`] itself.
 pub fn padded_hdr_pixels(
     level: &Level,
     map: &Lightmap,
     texels: u32,
 ) -> Result<Vec<[f32; 3]>, OutputError> {
-    let mut hdr = hdr_pixels(level, map)?;
+    let mut hdr = lightmap_pixels(level, map)?;
     if texels > 0 {
         let floor: Vec<bool> = level.cells.iter().map(|c| *c == Cell::Floor).collect();
-        super::padding::pad(level.width, level.height, &mut hdr, &floor, texels);
+        super::padding::pad_over(level.width, level.height, &mut hdr, &floor, texels);
     }
     Ok(hdr)
+}
+
+/// The linear values every lightmap output (PNG, EXR, KTX2, both RGBMs,
+/// layers) encodes before padding: I(p) on floor texels, the lightmap's
+/// value on solid texels (what [`crate::bake::Walls`] puts there: the
+/// radiosity of exposed wall faces by default, emission with glow, 0 with
+/// dark), 0 on void; unscaled by exposure and unclamped above, 0 where the
+/// value is negative or not finite. Row-major.
+pub fn lightmap_pixels(level: &Level, map: &Lightmap) -> Result<Vec<[f32; 3]>, OutputError> {
+    check_sizes(level, map)?;
+    Ok(level
+        .cells
+        .iter()
+        .zip(&map.rgb)
+        .map(|(c, v)| {
+            if *c == Cell::Void {
+                [0.0; 3]
+            } else {
+                v.map(|x| clean(x) as f32)
+            }
+        })
+        .collect())
 }
 
 /// `NAME.lightmap.png` in memory: I(p) x exposure, sRGB, void transparent.
@@ -258,10 +285,11 @@ pub fn lit_image(
     Ok(sdr_image(level, map, opts, true))
 }
 
-/// The linear HDR lightmap: I(p) on floor pixels, unscaled by exposure and
-/// unclamped above; 0 on solid and void pixels (docs/transport.md#tone-mapping-and-outputs), and 0 where
+/// The linear light of the floor: I(p) on floor pixels, unscaled by
+/// exposure and unclamped above; 0 on solid and void pixels, and 0 where
 /// the solve produced a negative or non-finite value (light is never
-/// negative). Row-major.
+/// negative). Row-major. The mean beside the directional moments; the
+/// lightmap outputs encode [`lightmap_pixels`], which adds the walls.
 pub fn hdr_pixels(level: &Level, map: &Lightmap) -> Result<Vec<[f32; 3]>, OutputError> {
     check_sizes(level, map)?;
     Ok(level
@@ -278,10 +306,10 @@ pub fn hdr_pixels(level: &Level, map: &Lightmap) -> Result<Vec<[f32; 3]>, Output
         .collect())
 }
 
-/// `NAME.lightmap.rgbm.png` in memory: [`hdr_pixels`] encoded with
-/// [`rgbm_encode`] (so solid and void pixels decode to 0, as in the EXR).
+/// `NAME.lightmap.rgbm.png` in memory: [`lightmap_pixels`] encoded with
+/// [`rgbm_encode`] (the values of the unpadded EXR).
 pub fn rgbm_image(level: &Level, map: &Lightmap) -> Result<RgbaImage, OutputError> {
-    let hdr = hdr_pixels(level, map)?;
+    let hdr = lightmap_pixels(level, map)?;
     Ok(rgbm_image_of(level, &hdr))
 }
 

@@ -291,6 +291,7 @@ mod tests {
                 warnings: vec![],
                 lossy_format: None,
                 origin: Default::default(),
+                floor_fraction: None,
             };
             let r = Responses {
                 width: 1,

@@ -41,8 +41,8 @@ pub use self::files::{
 };
 pub use self::image::{
     RGBM_RANGE, UNITY_RGBM_GAMMA, UNITY_RGBM_RANGE, encode_png, encode_png_rgba8,
-    encode_png_rgba16, hdr_pixels, lightmap_image, lit_image, padded_hdr_pixels, rgbm_decode,
-    rgbm_encode, rgbm_image, rgbm_unity_decode, rgbm_unity_encode, srgb8, srgb16,
+    encode_png_rgba16, hdr_pixels, lightmap_image, lightmap_pixels, lit_image, padded_hdr_pixels,
+    rgbm_decode, rgbm_encode, rgbm_image, rgbm_unity_decode, rgbm_unity_encode, srgb8, srgb16,
 };
 pub use self::ktx2::encode_ktx2_rgba16f;
 pub use self::names::OutputKind;
@@ -77,10 +77,13 @@ pub struct OutputOptions {
     /// convention, range 5 in gamma space (see [`rgbm_unity_encode`]).
     /// Default off.
     pub rgbm_unity: bool,
-    /// Padding of the lightmap outputs (PNG, EXR, RGBM) in texels, see
-    /// [`padding`]: non-floor texels within this many of the floor are
-    /// filled from it, and the lightmap PNG's alpha and an EXR `A` channel
-    /// give the coverage (1 floor, 0 elsewhere). 0 (the default,
+    /// Padding of the lightmap outputs (PNG, EXR, KTX2, RGBM, layers) in
+    /// texels, see [`padding`]: non-floor texels within this many of the
+    /// floor are filled from it (further ones keep what `--walls` put
+    /// there, [`padded_hdr_pixels`]), and the lightmap PNG's alpha, an EXR
+    /// `A` channel and the KTX2's alpha give the coverage
+    /// ([`Level::coverage`]: 1 floor, 0 elsewhere, the floor's share of a
+    /// texel below one texel per pixel). 0 (the default,
     /// [`padding::DEFAULT_PADDING`]) writes the lightmaps as without it.
     pub padding: u32,
     /// Also write `NAME.lightmap.ktx2`: the EXR's values as RGBA 16-bit
@@ -177,7 +180,7 @@ pub fn encode_images(
             None => encode_exr_rgb(
                 level.width,
                 level.height,
-                &hdr_pixels(level, map)?,
+                &lightmap_pixels(level, map)?,
                 opts.exr_compression,
             ),
         }
@@ -193,7 +196,7 @@ pub fn encode_images(
     if opts.ktx2 {
         let rgba = match &padded {
             Some(p) => with_coverage(level, p),
-            None => hdr_pixels(level, map)?
+            None => lightmap_pixels(level, map)?
                 .into_iter()
                 .map(|c| [c[0], c[1], c[2], 1.0])
                 .collect(),
@@ -221,7 +224,7 @@ pub fn encode_images(
     if opts.rgbm_unity {
         let hdr = match padded {
             Some(p) => p,
-            None => hdr_pixels(level, map)?,
+            None => lightmap_pixels(level, map)?,
         };
         files.push(png(
             OutputKind::RgbmUnity,
@@ -231,20 +234,14 @@ pub fn encode_images(
     Ok(files)
 }
 
-/// Padded linear pixels of `level` with the coverage as a fourth channel:
-/// 1 on floor, 0 on padding, walls and void.
+/// Padded linear pixels of `level` with the coverage ([`Level::coverage`])
+/// as a fourth channel: 1 on floor (the floor's share of the texel below
+/// one texel per pixel), 0 on padding, walls and void.
 pub(crate) fn with_coverage(level: &Level, padded: &[[f32; 3]]) -> Vec<[f32; 4]> {
     padded
         .iter()
-        .zip(&level.cells)
-        .map(|(c, cell)| {
-            let a = if *cell == crate::level::Cell::Floor {
-                1.0
-            } else {
-                0.0
-            };
-            [c[0], c[1], c[2], a]
-        })
+        .zip(level.coverage())
+        .map(|(c, a)| [c[0], c[1], c[2], a])
         .collect()
 }
 

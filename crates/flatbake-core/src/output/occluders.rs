@@ -562,6 +562,7 @@ mod tests {
             warnings: vec![],
             lossy_format: None,
             origin: Default::default(),
+            floor_fraction: None,
         };
         let g = crate::geometry::trace(&level);
         for tol in [f64::NAN, -1.0, 0.0] {

@@ -12,7 +12,9 @@
 //! in their `[min, max]`. Each value depends only on the previous pass,
 //! summed in a fixed neighbour order, so the result does not depend on
 //! threads or on the order texels are visited. Texels further than
-//! `texels` from the floor are 0.
+//! `texels` from the floor are 0 ([`pad`]) or keep their values
+//! ([`pad_over`], what the lightmap outputs do: wall faces there hold what
+//! `--walls` says).
 
 /// Padding width when none is asked for: 0, so the default lightmaps keep
 /// today's bytes (solid pixels showing their own radiosity, no coverage
@@ -41,14 +43,34 @@ const NEIGHBOURS: [(isize, isize); 8] = [
 /// documentation; every other non-floor texel becomes 0. Floor texels are
 /// left as they are. Inputs of mismatched lengths are left untouched.
 pub fn pad(width: usize, height: usize, values: &mut [[f32; 3]], floor: &[bool], texels: u32) {
+    pad_with(width, height, values, floor, texels, true);
+}
+
+/// As [`pad`], but the non-floor texels further than `texels` from the
+/// floor keep their values instead of becoming 0: the lightmap outputs'
+/// rule, where those texels hold what `--walls` put on wall faces.
+pub fn pad_over(width: usize, height: usize, values: &mut [[f32; 3]], floor: &[bool], texels: u32) {
+    pad_with(width, height, values, floor, texels, false);
+}
+
+fn pad_with(
+    width: usize,
+    height: usize,
+    values: &mut [[f32; 3]],
+    floor: &[bool],
+    texels: u32,
+    clear: bool,
+) {
     let n = width * height;
     if values.len() != n || floor.len() != n {
         return;
     }
     let mut filled = floor.to_vec();
-    for (v, &f) in values.iter_mut().zip(floor) {
-        if !f {
-            *v = [0.0; 3];
+    if clear {
+        for (v, &f) in values.iter_mut().zip(floor) {
+            if !f {
+                *v = [0.0; 3];
+            }
         }
     }
     let neighbours = |i: usize| {
@@ -124,6 +146,13 @@ mod tests {
         let mut v = vec![[2.0; 3], [7.0; 3], [4.0; 3]];
         pad(3, 1, &mut v, &[true, false, true], 1);
         assert_eq!(v[1], [3.0; 3]);
+    }
+
+    #[test]
+    fn pad_over_keeps_what_lies_beyond_the_width() {
+        let mut v = vec![[1.0; 3], [9.0; 3], [9.0; 3], [5.0; 3]];
+        pad_over(4, 1, &mut v, &[true, false, false, false], 2);
+        assert_eq!(v, vec![[1.0; 3], [1.0; 3], [1.0; 3], [5.0; 3]]);
     }
 
     #[test]
