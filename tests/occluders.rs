@@ -443,7 +443,7 @@ fn godot4_tres(text: &str) -> Vec<(bool, i64, Vec<f64>)> {
                         .split(", ")
                         .map(|n| n.parse().unwrap_or_else(|_| panic!("a number: {n:?}")))
                         .collect();
-                    assert!(nums.len() % 2 == 0 && nums.len() >= 6, "{value}");
+                    assert!(nums.len().is_multiple_of(2) && nums.len() >= 6, "{value}");
                     assert!(polygon.is_none(), "polygon twice");
                     polygon = Some(nums);
                 }
