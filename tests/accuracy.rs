@@ -178,6 +178,89 @@ fn falloff_hall_error_falls_with_quality() {
     check_ladder("falloff hall", &falloff_hall(), Some(12.0));
 }
 
+/// An edge's clearance counts the free pixels in front of it up to a solid
+/// pixel, the border or the cap, and takes the lower quartile along the
+/// edge; the patches of the normal preset follow it.
+#[test]
+fn patches_are_no_longer_than_a_multiple_of_their_clearance() {
+    use flatbake_core::geometry::{Normal, trace};
+    use flatbake_core::transport::Patches;
+    use flatbake_core::transport::clearance;
+    // A room 16 px wide; the wall across its top has a 2-px pocket above
+    // columns 1..5 of the room and is solid above the rest.
+    let mut rows = vec!["#".repeat(18); 3];
+    rows[1].replace_range(2..6, "....");
+    rows[2].replace_range(2..6, "....");
+    for _ in 0..12 {
+        rows.push(format!("#{}#", ".".repeat(16)));
+    }
+    rows.push("#".repeat(18));
+    let level = ascii(&refs(&rows), &[('#', wall(0.5))]);
+    let g = trace(&level);
+    let find = |normal: Normal, line: f64, len: f64| {
+        g.edges
+            .iter()
+            .position(|e| e.normal == normal && e.line() == line && e.len() == len)
+            .unwrap_or_else(|| panic!("an edge {normal:?} at {line}, {len} long"))
+    };
+    // The pocket's roof sees down through the pocket and the room (14 px);
+    // its left side sees across the pocket (4 px); the room's left wall
+    // across the room (16 px); the stub of top wall left of the pocket down
+    // the room (12 px).
+    let pocket_roof = find(Normal::Down, 1.0, 4.0);
+    let pocket_side = find(Normal::Right, 2.0, 2.0);
+    let room_left = find(Normal::Right, 1.0, 12.0);
+    let top = find(Normal::Down, 3.0, 1.0);
+    assert_eq!(clearance(&g, &g.edges[pocket_roof], 99), 14);
+    assert_eq!(clearance(&g, &g.edges[pocket_side], 99), 4);
+    assert_eq!(clearance(&g, &g.edges[room_left], 99), 16);
+    assert_eq!(clearance(&g, &g.edges[room_left], 3), 3, "the cap");
+    assert_eq!(clearance(&g, &g.edges[top], 99), 12);
+    // Normal: 4 px patches, and no longer than 1.5x the clearance.
+    let knobs = Quality::Normal.knobs();
+    let k = knobs.per_clearance.expect("normal follows clearance");
+    let p = Patches::new_where(&g, 4.0, Some(k), |_| true);
+    let longest = |e: usize| p.of_edge(e).map(|q| p.length(q)).fold(0.0, f64::max);
+    for (e, c) in [(pocket_roof, 14.0), (pocket_side, 4.0), (room_left, 16.0)] {
+        assert!(
+            longest(e) <= (4.0f64).min(k * c),
+            "edge {e}: {}",
+            longest(e)
+        );
+    }
+    let narrow = ascii(&["######", "#....#", "######"], &[('#', wall(0.5))]);
+    let g = trace(&narrow);
+    let corridor = find_in(&g, Normal::Down, 1.0);
+    assert_eq!(clearance(&g, &g.edges[corridor], 99), 1);
+    let p = Patches::new_where(&g, 4.0, Some(k), |_| true);
+    assert_eq!(p.of_edge(corridor).len(), (4.0 / k).ceil() as usize);
+    assert_eq!(Patches::new(&g, 4.0).of_edge(corridor).len(), 1);
+}
+
+fn find_in(
+    g: &flatbake_core::geometry::Geometry,
+    normal: flatbake_core::geometry::Normal,
+    line: f64,
+) -> usize {
+    g.edges
+        .iter()
+        .position(|e| e.normal == normal && e.line() == line)
+        .expect("the edge")
+}
+
+/// Corridors one to three pixels wide in rock, lit from lamps in their
+/// walls, with the generator's falloff: light crosses a corridor over a
+/// pixel or two, so patches as long as the preset's patch length would
+/// average away the light along the walls; patches no longer than a
+/// multiple of the corridor's width keep the ladder.
+#[test]
+fn corridors_error_falls_with_quality() {
+    let (level, palette) = flatbake_synth::corridors(128, 7)
+        .level()
+        .expect("the generator's palette parses");
+    check_ladder("corridors", &level, palette.settings.falloff);
+}
+
 /// `reference` is converged: halving its patch length (and keeping the
 /// largest quadrature) changes the lightmap by less than 0.05%.
 #[test]

@@ -664,7 +664,7 @@ fn the_memory_estimate_counts_form_factor_entries_from_a_sample() {
             .level()
             .expect("the benchmark's palette parses");
         let knobs = Quality::Normal.knobs();
-        let scene = bake::Scene::new(&level, knobs.patch_len, false);
+        let scene = bake::Scene::new(&level, &knobs, false);
         let falloff = falloff.map(transport::kernel::Falloff::new);
         let lens: Vec<f64> = scene.geometry.edges.iter().map(|e| e.len()).collect();
         let reach = Reach::new(

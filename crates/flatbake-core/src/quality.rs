@@ -24,6 +24,14 @@ pub enum Quality {
 pub struct Knobs {
     /// Longest patch, in pixels.
     pub patch_len: f64,
+    /// Longest patch as a multiple of its edge's clearance, the free
+    /// distance in front of the edge ([`crate::transport::clearance`]):
+    /// in a corridor one or two pixels wide, light crosses from wall to wall
+    /// over a distance far shorter than `patch_len`, and a patch as long as
+    /// `patch_len` averages away the light along it. `None`: `patch_len`
+    /// alone.
+    #[serde(default)]
+    pub per_clearance: Option<f64>,
     /// Gauss-Legendre points per patch for the form factors.
     pub quad: usize,
     /// Relative residual the solver must reach.
@@ -56,6 +64,7 @@ impl Quality {
         match self {
             Quality::Draft => Knobs {
                 patch_len: 8.0,
+                per_clearance: Some(3.0),
                 quad: 2,
                 tolerance: 1e-4,
                 reach_bound: 1e-4,
@@ -63,6 +72,7 @@ impl Quality {
             },
             Quality::Normal => Knobs {
                 patch_len: 4.0,
+                per_clearance: Some(1.5),
                 quad: 3,
                 tolerance: 1e-6,
                 reach_bound: 1e-5,
@@ -70,6 +80,7 @@ impl Quality {
             },
             Quality::High => Knobs {
                 patch_len: 2.0,
+                per_clearance: Some(0.75),
                 quad: 4,
                 tolerance: 1e-8,
                 reach_bound: 1e-6,
@@ -77,6 +88,7 @@ impl Quality {
             },
             Quality::Reference => Knobs {
                 patch_len: 0.5,
+                per_clearance: None,
                 quad: 8,
                 tolerance: 1e-10,
                 reach_bound: 0.0,

@@ -366,7 +366,7 @@ pub fn bake_with_progress(
 
     progress("geometry");
     let t = Instant::now();
-    let mut scene = Scene::new(level, settings.knobs.patch_len, settings.exhaustive);
+    let mut scene = Scene::new(level, &settings.knobs, settings.exhaustive);
     scene.geometry.unit = settings.unit.max(1);
     timed(&mut timings.geometry, t);
 

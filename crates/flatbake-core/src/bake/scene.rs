@@ -7,13 +7,15 @@
 use crate::geometry::{self, Geometry};
 use crate::level::Level;
 use crate::level::material::MaterialKind;
+use crate::quality::Knobs;
 use crate::transport::Patches;
 
 /// A traced level with its materials resolved per patch and per edge.
 pub struct Scene {
     /// The traced walls.
     pub geometry: Geometry,
-    /// Every edge cut into patches no longer than the preset's patch length.
+    /// Every edge cut into patches no longer than the preset's patch length
+    /// (and its multiple of the edge's clearance).
     pub patches: Patches,
     /// Which of the level's materials some edge is made of.
     pub used: Vec<bool>,
@@ -34,14 +36,15 @@ pub struct Scene {
 }
 
 impl Scene {
-    /// Traces `level` and cuts its edges into patches of at most `patch_len`.
-    pub fn new(level: &Level, patch_len: f64, exhaustive: bool) -> Scene {
+    /// Traces `level` and cuts its edges into patches as `knobs` set their
+    /// length ([`Patches::new_where`]).
+    pub fn new(level: &Level, knobs: &Knobs, exhaustive: bool) -> Scene {
         let geometry = geometry::trace(level);
         let lit = lit_components(level, &geometry);
         let edges = &geometry.edges;
         let keep = |e: usize| exhaustive || lit[edges[e].component as usize];
         let dark_edges = (0..edges.len()).filter(|&e| !keep(e)).count();
-        let patches = Patches::new_where(&geometry, patch_len, keep);
+        let patches = Patches::new_where(&geometry, knobs.patch_len, knobs.per_clearance, keep);
         let np = patches.len();
         let mut used = vec![false; level.materials.len()];
         for e in edges {

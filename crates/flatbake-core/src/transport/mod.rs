@@ -28,4 +28,4 @@ pub mod solve;
 pub use factors::{
     FormFactors, PointRows, estimate_point_entries, form_factors, point_factors, wanted_reach,
 };
-pub use patches::{Patches, axis_vec, normal_vec};
+pub use patches::{Patches, axis_vec, clearance, normal_vec};

@@ -1,4 +1,6 @@
-//! Patches: every edge cut into equal pieces no longer than the patch length.
+//! Patches: every edge cut into equal pieces no longer than the patch length,
+//! and, where a preset asks, no longer than a multiple of the free distance
+//! in front of the edge ([`clearance`]).
 
 use std::ops::Range;
 
@@ -21,13 +23,19 @@ pub struct Patches {
 impl Patches {
     /// Cuts every edge into `ceil(len / patch_len)` equal patches.
     pub fn new(geometry: &Geometry, patch_len: f64) -> Patches {
-        Patches::new_where(geometry, patch_len, |_| true)
+        Patches::new_where(geometry, patch_len, None, |_| true)
     }
 
-    /// Cuts the edges that `keep` says may carry light into
-    /// `ceil(len / patch_len)` equal patches, and gives the others none
+    /// Cuts the edges that `keep` says may carry light into equal patches
+    /// no longer than `patch_len` and, with `per_clearance` = `Some(k)`, no
+    /// longer than `k` times the edge's [`clearance`]; gives the others none
     /// (their radiosity is 0 and nothing reads it).
-    pub fn new_where(geometry: &Geometry, patch_len: f64, keep: impl Fn(usize) -> bool) -> Patches {
+    pub fn new_where(
+        geometry: &Geometry,
+        patch_len: f64,
+        per_clearance: Option<f64>,
+        keep: impl Fn(usize) -> bool,
+    ) -> Patches {
         let mut first = Vec::with_capacity(geometry.edges.len() + 1);
         let mut step = Vec::with_capacity(geometry.edges.len());
         let mut edge = Vec::new();
@@ -35,7 +43,15 @@ impl Patches {
         for (i, e) in geometry.edges.iter().enumerate() {
             let len = e.len();
             let n = if keep(i) {
-                ((len / patch_len).ceil() as usize).max(1)
+                let longest = match per_clearance {
+                    // Clearances past patch_len / k cannot shorten a patch.
+                    Some(k) if k < patch_len => {
+                        let cap = (patch_len / k).ceil() as usize;
+                        patch_len.min(k * clearance(geometry, e, cap) as f64)
+                    }
+                    _ => patch_len,
+                };
+                ((len / longest).ceil() as usize).max(1)
             } else {
                 0
             };
@@ -113,6 +129,33 @@ impl Patches {
             }
         }
     }
+}
+
+/// The clearance of edge `e`: for each unit segment of it, the free pixels
+/// straight out in front of it, counted until a solid pixel or the level's
+/// border and at most `cap`; of those counts, the lower quartile, so that an
+/// edge a quarter of whose length faces a narrow gap counts as narrow.
+/// At least 1 (the pixel in front of an edge is free).
+pub fn clearance(geometry: &Geometry, e: &Edge, cap: usize) -> usize {
+    let (lo, hi) = e.extent();
+    let n = e.normal.vec();
+    let mut probes: Vec<usize> = (lo as i32..hi as i32)
+        .map(|s| {
+            let [x, y] = e.free_pixel_at(s);
+            (0..cap as i64)
+                .take_while(|&d| {
+                    let at = (x as i64 + d * n[0] as i64, y as i64 + d * n[1] as i64);
+                    geometry.component_at(at.0, at.1).is_some()
+                })
+                .count()
+        })
+        .collect();
+    if probes.is_empty() {
+        return 1;
+    }
+    let quartile = (probes.len() - 1) / 4;
+    let (_, q, _) = probes.select_nth_unstable(quartile);
+    (*q).max(1)
 }
 
 /// Unit vector along an edge's axis (`+y` for vertical edges, `+x` otherwise).
