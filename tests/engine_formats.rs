@@ -712,20 +712,7 @@ fn coverage_below_density_one_is_the_floor_share_of_each_texel() {
             .collect();
         let partial = share.iter().filter(|&&f| f > 0.0 && f < 1.0).count();
         assert!(partial > 4, "1/{m}: the level wants texels part floor");
-        let opts = OutputOptions {
-            hdr: true,
-            ktx2: true,
-            padding: 2,
-            ..OutputOptions::default()
-        };
-        let files = encode_images(tl, map, &opts).expect("encode");
-        let exr = image::load_from_memory_with_format(
-            file(&files, OutputKind::Hdr),
-            image::ImageFormat::OpenExr,
-        )
-        .expect("EXR")
-        .into_rgba32f();
-        let ktx = read_ktx2(file(&files, OutputKind::Ktx2), tw as u32, th as u32);
+        let (files, exr, ktx) = exr_and_ktx2(tl, map, 2);
         let png = image::load_from_memory(file(&files, OutputKind::Lightmap))
             .expect("png")
             .into_rgba8();
@@ -755,6 +742,34 @@ fn coverage_below_density_one_is_the_floor_share_of_each_texel() {
     }
 }
 
+/// The lightmap's outputs with the EXR and the KTX2 at `padding`: the
+/// files, the EXR as read by the image crate, the KTX2's texels.
+fn exr_and_ktx2(
+    tl: &Level,
+    map: &flatbake_core::output::Lightmap,
+    padding: u32,
+) -> (Vec<Encoded>, image::Rgba32FImage, Vec<[f32; 4]>) {
+    let opts = OutputOptions {
+        hdr: true,
+        ktx2: true,
+        padding,
+        ..OutputOptions::default()
+    };
+    let files = encode_images(tl, map, &opts).expect("encode");
+    let exr = image::load_from_memory_with_format(
+        file(&files, OutputKind::Hdr),
+        image::ImageFormat::OpenExr,
+    )
+    .expect("EXR")
+    .into_rgba32f();
+    let ktx = read_ktx2(
+        file(&files, OutputKind::Ktx2),
+        tl.width as u32,
+        tl.height as u32,
+    );
+    (files, exr, ktx)
+}
+
 /// `--walls` reaches the EXR and the KTX2 as it reaches the PNG: unpadded,
 /// every solid texel holds what the walls mode says (the face's radiosity,
 /// the emitter's emission, 0); padded, texels within the width hold the
@@ -780,21 +795,8 @@ fn walls_reach_the_exr_and_the_ktx2() {
             .expect("bake");
             let (tl, map) = (&t.level, &t.baked.lightmap);
             let (tw, th) = (tl.width, tl.height);
-            let opts = OutputOptions {
-                hdr: true,
-                ktx2: true,
-                padding,
-                ..OutputOptions::default()
-            };
-            let files = encode_images(tl, map, &opts).expect("encode");
-            let exr = image::load_from_memory_with_format(
-                file(&files, OutputKind::Hdr),
-                image::ImageFormat::OpenExr,
-            )
-            .expect("EXR")
-            .into_rgba32f();
+            let (_, exr, ktx) = exr_and_ktx2(tl, map, padding);
             let exr: Vec<[f32; 3]> = exr.pixels().map(|p| [p.0[0], p.0[1], p.0[2]]).collect();
-            let ktx = read_ktx2(file(&files, OutputKind::Ktx2), tw as u32, th as u32);
             check_halves(&ktx, &exr);
             let near_floor = |i: usize| {
                 let (x, y) = (i % tw, i / tw);

@@ -10,6 +10,7 @@ mod common;
 use common::*;
 
 use std::f64::consts::TAU;
+use std::path::{Path, PathBuf};
 
 use flatbake_core::bake::texels::{Density, TexelOptions, Walls, bake_texels};
 use flatbake_core::bake::{Settings, bake};
@@ -558,28 +559,36 @@ fn fingerprint_spells_texel_options_only_when_set() {
     assert!(opts.fingerprint().ends_with(" walls dark"));
 }
 
+/// Writes the room with a pillar to `dir` as `room.png` and bakes it into
+/// `dir/out` with `args`: the level, the output folder and the run.
+fn bake_room(dir: &Path, args: &[&str]) -> (PathBuf, PathBuf, std::process::Output) {
+    write_room(dir, "room", true);
+    let level = dir.join("room.png");
+    let out = dir.join("out");
+    let mut all = vec!["bake", s(&level), "-o", s(&out)];
+    all.extend_from_slice(args);
+    let o = flatbake(&all);
+    (level, out, o)
+}
+
 /// The binary: a density-4 bake with padding, layers and a cache writes
 /// texel-sized images; relighting the cache with unchanged emission gives
 /// the same lightmap bytes; the density is refused with its range.
 #[test]
 fn cli_density_bake_relight_and_padding() {
     let dir = tempfile::tempdir().unwrap();
-    write_room(dir.path(), "room", true);
-    let level = dir.path().join("room.png");
-    let out = dir.path().join("out");
-    let o = flatbake(&[
-        "bake",
-        s(&level),
-        "-o",
-        s(&out),
-        "--texels-per-pixel",
-        "4",
-        "--padding",
-        "4",
-        "--cache",
-        "--layers",
-        "--quiet",
-    ]);
+    let (level, out, o) = bake_room(
+        dir.path(),
+        &[
+            "--texels-per-pixel",
+            "4",
+            "--padding",
+            "4",
+            "--cache",
+            "--layers",
+            "--quiet",
+        ],
+    );
     assert_exit(&o, EXIT_OK);
     let painted = image::open(&level).unwrap();
     let map = image::open(out.join("room.lightmap.png")).unwrap();
@@ -692,18 +701,7 @@ fn the_report_counts_pixels_texels_and_points_apart() {
     }
     // The binary says it, and writes the fields.
     let dir = tempfile::tempdir().unwrap();
-    write_room(dir.path(), "room", true);
-    let level = dir.path().join("room.png");
-    let out = dir.path().join("out");
-    let o = flatbake(&[
-        "bake",
-        s(&level),
-        "-o",
-        s(&out),
-        "--texels-per-pixel",
-        "2",
-        "--verbose",
-    ]);
+    let (level, out, o) = bake_room(dir.path(), &["--texels-per-pixel", "2", "--verbose"]);
     assert_exit(&o, EXIT_OK);
     let painted = image::open(&level).unwrap();
     let (pw, ph) = (painted.width(), painted.height());

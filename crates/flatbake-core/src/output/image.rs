@@ -249,16 +249,25 @@ pub fn padded_hdr_pixels(
 /// dark), 0 on void; unscaled by exposure and unclamped above, 0 where the
 /// value is negative or not finite. Row-major.
 pub fn lightmap_pixels(level: &Level, map: &Lightmap) -> Result<Vec<[f32; 3]>, OutputError> {
+    linear_pixels(level, map, |c| c != Cell::Void)
+}
+
+/// The map's values, cleaned, on the cells `keep` holds; 0 elsewhere.
+fn linear_pixels(
+    level: &Level,
+    map: &Lightmap,
+    keep: impl Fn(Cell) -> bool,
+) -> Result<Vec<[f32; 3]>, OutputError> {
     check_sizes(level, map)?;
     Ok(level
         .cells
         .iter()
         .zip(&map.rgb)
-        .map(|(c, v)| {
-            if *c == Cell::Void {
-                [0.0; 3]
-            } else {
+        .map(|(&c, v)| {
+            if keep(c) {
                 v.map(|x| clean(x) as f32)
+            } else {
+                [0.0; 3]
             }
         })
         .collect())
@@ -291,19 +300,7 @@ pub fn lit_image(
 /// negative). Row-major. The mean beside the directional moments; the
 /// lightmap outputs encode [`lightmap_pixels`], which adds the walls.
 pub fn hdr_pixels(level: &Level, map: &Lightmap) -> Result<Vec<[f32; 3]>, OutputError> {
-    check_sizes(level, map)?;
-    Ok(level
-        .cells
-        .iter()
-        .zip(&map.rgb)
-        .map(|(c, v)| {
-            if *c == Cell::Floor {
-                v.map(|x| clean(x) as f32)
-            } else {
-                [0.0; 3]
-            }
-        })
-        .collect())
+    linear_pixels(level, map, |c| c == Cell::Floor)
 }
 
 /// `NAME.lightmap.rgbm.png` in memory: [`lightmap_pixels`] encoded with
