@@ -678,21 +678,11 @@ fn the_moments_of_a_directional_bake_go_into_signed_ktx2_files_with_the_lightmap
 /// the floor's, not padding.
 #[test]
 fn coverage_below_density_one_is_the_floor_share_of_each_texel() {
-    use flatbake_core::bake::texels::{Density, TexelOptions, bake_texels};
+    use flatbake_core::bake::texels::{Density, Walls};
     let lvl = level();
     let (pw, ph) = (lvl.width, lvl.height);
     for m in [2usize, 3] {
-        let t = bake_texels(
-            &lvl,
-            &Settings::new(Quality::Draft),
-            &TexelOptions {
-                density: Density::Down(m as u32),
-                ..TexelOptions::default()
-            },
-            &quiet,
-            &|_| {},
-        )
-        .expect("bake");
+        let t = draft_texels(&lvl, Density::Down(m as u32), Walls::default());
         let (tl, map) = (&t.level, &t.baked.lightmap);
         let (tw, th) = (tl.width, tl.height);
         assert_eq!((tw, th), (pw.div_ceil(m), ph.div_ceil(m)));
@@ -742,6 +732,27 @@ fn coverage_below_density_one_is_the_floor_share_of_each_texel() {
     }
 }
 
+/// `lvl` baked at `draft` at `density` with `walls`.
+fn draft_texels(
+    lvl: &Level,
+    density: flatbake_core::bake::texels::Density,
+    walls: flatbake_core::bake::texels::Walls,
+) -> flatbake_core::bake::texels::TexelBake {
+    use flatbake_core::bake::texels::{TexelOptions, bake_texels};
+    bake_texels(
+        lvl,
+        &Settings::new(Quality::Draft),
+        &TexelOptions {
+            density,
+            walls,
+            ..TexelOptions::default()
+        },
+        &quiet,
+        &|_| {},
+    )
+    .expect("bake")
+}
+
 /// The lightmap's outputs with the EXR and the KTX2 at `padding`: the
 /// files, the EXR as read by the image crate, the KTX2's texels.
 fn exr_and_ktx2(
@@ -776,23 +787,12 @@ fn exr_and_ktx2(
 /// padding and the wall-face texels beyond it keep the walls' values.
 #[test]
 fn walls_reach_the_exr_and_the_ktx2() {
-    use flatbake_core::bake::texels::{Density, TexelOptions, Walls, bake_texels};
+    use flatbake_core::bake::texels::{Density, Walls};
     let lvl = level();
     let emission = 20.0f32;
     for walls in [Walls::Lit, Walls::Glow, Walls::Dark] {
         for (density, padding) in [(1u32, 0u32), (4, 0), (4, 1)] {
-            let t = bake_texels(
-                &lvl,
-                &Settings::new(Quality::Draft),
-                &TexelOptions {
-                    density: Density::Up(density),
-                    walls,
-                    ..TexelOptions::default()
-                },
-                &quiet,
-                &|_| {},
-            )
-            .expect("bake");
+            let t = draft_texels(&lvl, Density::Up(density), walls);
             let (tl, map) = (&t.level, &t.baked.lightmap);
             let (tw, th) = (tl.width, tl.height);
             let (_, exr, ktx) = exr_and_ktx2(tl, map, padding);

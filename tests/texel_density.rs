@@ -123,12 +123,9 @@ fn closed_room_is_e_over_one_minus_r_at_every_texel_and_density() {
     }
 }
 
-/// The solve is the same scene at every density: the upscaled level has
-/// the same patches (every length scaled with it), so radiosity per patch,
-/// and the power balance, agree to rounding — with walls, shadows, a
-/// bounce and falloff.
-#[test]
-fn radiosity_does_not_change_with_the_density() {
+/// A room with a lamp of emission 2 in its top wall, walls of reflectance
+/// `r` and the lamp's own reflectance `lamp_r`, and two pillars.
+fn lamp_room(r: f64, lamp_r: f64) -> Level {
     let rows = [
         "################",
         "#......LL......#",
@@ -139,7 +136,16 @@ fn radiosity_does_not_change_with_the_density() {
         "#..............#",
         "################",
     ];
-    let lvl = ascii(&rows, &[('#', wall(0.6)), ('L', light(2.0, 0.3))]);
+    ascii(&rows, &[('#', wall(r)), ('L', light(2.0, lamp_r))])
+}
+
+/// The solve is the same scene at every density: the upscaled level has
+/// the same patches (every length scaled with it), so radiosity per patch,
+/// and the power balance, agree to rounding — with walls, shadows, a
+/// bounce and falloff.
+#[test]
+fn radiosity_does_not_change_with_the_density() {
+    let lvl = lamp_room(0.6, 0.3);
     for falloff in [None, Some(6.0)] {
         let mut settings = Settings::new(Quality::Normal);
         settings.falloff = falloff;
@@ -645,17 +651,7 @@ fn cli_density_bake_relight_and_padding() {
 /// points apart, in its JSON fields and in the verbose console line.
 #[test]
 fn the_report_counts_pixels_texels_and_points_apart() {
-    let rows = [
-        "################",
-        "#......LL......#",
-        "#..............#",
-        "#...##.........#",
-        "#...##....#....#",
-        "#.........#....#",
-        "#..............#",
-        "################",
-    ];
-    let lvl = ascii(&rows, &[('#', wall(0.5)), ('L', light(2.0, 0.2))]);
+    let lvl = lamp_room(0.5, 0.2);
     let settings = Settings::new(Quality::Draft);
     let (w, h) = (lvl.width, lvl.height);
     let floor = lvl.cells.iter().filter(|&&c| c == Cell::Floor).count();
