@@ -863,6 +863,39 @@ fn paper_rows_just_below_1_converge_on_large_systems() {
     }
 }
 
+/// Every class of generated level, small, bakes at `draft` and `normal`
+/// (and exhaustively) with its palette's falloff: finite, non-negative,
+/// balanced light and no clamped-light warning. The merged pieces and the
+/// falloff reach may take a far, nearly dark pixel a little below 0 (within
+/// the preset's bound of the brightest emission); that is set to 0 without
+/// a word, and only light further below 0 is a fault worth a warning.
+#[test]
+fn every_level_class_bakes_clean() {
+    for class in flatbake_synth::small_classes(128) {
+        let (lvl, pal) = class
+            .level
+            .level()
+            .unwrap_or_else(|e| panic!("{}: {e}", class.label));
+        for (q, exhaustive) in [
+            (Quality::Draft, false),
+            (Quality::Normal, false),
+            (Quality::Normal, true),
+        ] {
+            let mut s = settings(q);
+            s.falloff = pal.settings.falloff;
+            s.exhaustive = exhaustive;
+            let baked =
+                bake(&lvl, &s, &quiet).unwrap_or_else(|e| panic!("{} at {q}: {e}", class.label));
+            eprintln!(
+                "{} at {q}{}: ok",
+                class.label,
+                if exhaustive { " (exhaustive)" } else { "" }
+            );
+            check(&lvl, &baked, s.knobs.tolerance.max(1e-5));
+        }
+    }
+}
+
 // ---------------------------------------------------------------------------
 // Random levels
 

@@ -290,6 +290,24 @@ fn reachable_pixels(ctx: &Ctx, scene: &Scene, rad: &Radiosity) -> (Vec<[i32; 2]>
     })
 }
 
+/// The most the gather's approximations (pairs beyond the falloff reach,
+/// merged runs of distant patches) may take from a pixel's light: the
+/// preset's bound times the emission of each emitter some edge uses (a
+/// plain bake errs by at most the bound times the brightest emission; a
+/// lightmap summed from per-emitter responses, by the bound times each
+/// emitter's emission in each response). 0 when nothing is approximated.
+pub fn approximation_bound(ctx: &Ctx, scene: &Scene) -> f64 {
+    let emitters: f64 = ctx
+        .level
+        .materials
+        .iter()
+        .zip(&scene.used)
+        .filter(|(_, u)| **u)
+        .map(|(m, _)| m.emission.into_iter().fold(0.0, f64::max))
+        .sum();
+    ctx.reach_bound * emitters
+}
+
 /// The brightest emission of any channel of any material some edge uses.
 fn brightest_emission(ctx: &Ctx, scene: &Scene) -> f64 {
     ctx.level

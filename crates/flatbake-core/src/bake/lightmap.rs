@@ -151,14 +151,19 @@ fn responses(
     })
 }
 
-/// Never hands out NaN or negative light: clamps it to 0 with a warning
-/// (it would be a bug upstream).
-pub fn clamp(lightmap: &mut Lightmap, log: &mut Log) {
+/// Never hands out NaN or negative light: clamps it to 0, with a warning
+/// where it is more than `allowed` below 0 (it would be a bug upstream).
+/// `allowed` is what the gather's approximations may take from a pixel
+/// ([`super::light::approximation_bound`]).
+pub fn clamp(lightmap: &mut Lightmap, allowed: f64, log: &mut Log) {
     // The fast gather sums closed-form moments of each visible piece, terms
     // of the size of the brightest light that nearly cancel for a far or
     // faint piece (a tiny falloff): a pixel that receives almost nothing can
     // come out a rounding error below 0 (seen down to -6e-11 of the
-    // brightest pixel). That is rounding, set to 0 without a word; anything
+    // brightest pixel). And a merged run of distant patches is a parabola
+    // within the preset's bound of their light, which may dip below 0 over
+    // a nearly dark pixel (seen down to -5.6e-7 of the brightest emission
+    // with a bound of 1e-5). Both are set to 0 without a word; anything
     // further below 0, or not finite, is a fault worth reporting.
     let brightest = lightmap
         .rgb
@@ -166,7 +171,7 @@ pub fn clamp(lightmap: &mut Lightmap, log: &mut Log) {
         .flatten()
         .filter(|v| v.is_finite())
         .fold(0f32, |a, &v| a.max(v));
-    let rounding = ROUNDING_BELOW_ZERO * brightest;
+    let rounding = (ROUNDING_BELOW_ZERO * brightest).max(allowed as f32);
     let bad = |v: &f32| !v.is_finite() || *v < -rounding;
     if lightmap.rgb.iter().any(|p| p.iter().any(bad)) {
         log.warn("non-finite or negative light was clamped to 0 (please report this level)");
@@ -246,5 +251,42 @@ fn solid_pixels(
         if matches!(cell, Cell::Solid(_)) && count[i] > 0 {
             rgb[i] = [0, 1, 2].map(|c| light_f32(sum[i][c] / count[i] as f64));
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn clamped(values: &[f32], allowed: f64) -> (Vec<f32>, bool) {
+        let mut map = Lightmap {
+            width: values.len(),
+            height: 1,
+            rgb: values.iter().map(|&v| [v, 1.0, 0.5]).collect(),
+        };
+        let mut log = Log::default();
+        clamp(&mut map, allowed, &mut log);
+        let warned = log.warnings.iter().any(|w| w.contains("clamped"));
+        (map.rgb.iter().map(|p| p[0]).collect(), warned)
+    }
+
+    /// Rounding below 0 and light within the approximations' bound below 0
+    /// are set to 0 silently; light further below 0, or not finite, is set
+    /// to 0 with a warning; light at or above 0 is untouched.
+    #[test]
+    fn clamps_to_zero_and_warns_only_past_the_bounds() {
+        // Brightest 10: rounding is 1e-8 below 0.
+        assert_eq!(
+            clamped(&[10.0, 0.25, -5e-9], 0.0),
+            (vec![10.0, 0.25, 0.0], false)
+        );
+        assert_eq!(clamped(&[10.0, -1e-6], 0.0), (vec![10.0, 0.0], true));
+        assert_eq!(clamped(&[10.0, -1e-6], 1e-4), (vec![10.0, 0.0], false));
+        assert_eq!(clamped(&[10.0, -1e-3], 1e-4), (vec![10.0, 0.0], true));
+        assert_eq!(clamped(&[10.0, f32::NAN], 1e-4), (vec![10.0, 0.0], true));
+        assert_eq!(
+            clamped(&[10.0, f32::INFINITY], 1.0),
+            (vec![10.0, 0.0], true)
+        );
     }
 }

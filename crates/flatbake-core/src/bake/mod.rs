@@ -416,7 +416,8 @@ pub fn bake_with_progress(
     };
     timed(&mut timings.gather, t);
     timed(&mut timings.total, t_total);
-    lightmap::clamp(&mut assembled.lightmap, &mut log);
+    let allowed = light::approximation_bound(&ctx, &scene);
+    lightmap::clamp(&mut assembled.lightmap, allowed, &mut log);
     checks::lightmap(level, &assembled.lightmap.rgb, &mut log);
 
     let counts = Counts {
