@@ -80,7 +80,7 @@ impl Quality {
             },
             Quality::High => Knobs {
                 patch_len: 2.0,
-                per_clearance: Some(0.75),
+                per_clearance: Some(1.0),
                 quad: 4,
                 tolerance: 1e-8,
                 reach_bound: 1e-6,
