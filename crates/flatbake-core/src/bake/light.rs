@@ -297,26 +297,22 @@ fn reachable_pixels(ctx: &Ctx, scene: &Scene, rad: &Radiosity) -> (Vec<[i32; 2]>
 /// lightmap summed from per-emitter responses, by the bound times each
 /// emitter's emission in each response). 0 when nothing is approximated.
 pub fn approximation_bound(ctx: &Ctx, scene: &Scene) -> f64 {
-    let emitters: f64 = ctx
-        .level
-        .materials
-        .iter()
-        .zip(&scene.used)
-        .filter(|(_, u)| **u)
-        .map(|(m, _)| m.emission.into_iter().fold(0.0, f64::max))
-        .sum();
-    ctx.reach_bound * emitters
+    ctx.reach_bound * used_emissions(ctx, scene).sum::<f64>()
 }
 
 /// The brightest emission of any channel of any material some edge uses.
 fn brightest_emission(ctx: &Ctx, scene: &Scene) -> f64 {
+    used_emissions(ctx, scene).fold(0.0, f64::max)
+}
+
+/// The brightest channel's emission of each material some edge uses.
+fn used_emissions<'a>(ctx: &'a Ctx, scene: &'a Scene) -> impl Iterator<Item = f64> + 'a {
     ctx.level
         .materials
         .iter()
         .zip(&scene.used)
         .filter(|(_, u)| **u)
-        .flat_map(|(m, _)| m.emission)
-        .fold(0.0, f64::max)
+        .map(|(m, _)| m.emission.into_iter().fold(0.0, f64::max))
 }
 
 /// Linear profiles along patches from the radiosity at the quadrature

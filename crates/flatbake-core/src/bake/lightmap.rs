@@ -171,8 +171,8 @@ pub fn clamp(lightmap: &mut Lightmap, allowed: f64, log: &mut Log) {
         .flatten()
         .filter(|v| v.is_finite())
         .fold(0f32, |a, &v| a.max(v));
-    let rounding = (ROUNDING_BELOW_ZERO * brightest).max(allowed as f32);
-    let bad = |v: &f32| !v.is_finite() || *v < -rounding;
+    let silent = (ROUNDING_BELOW_ZERO * brightest).max(allowed as f32);
+    let bad = |v: &f32| !v.is_finite() || *v < -silent;
     if lightmap.rgb.iter().any(|p| p.iter().any(bad)) {
         log.warn("non-finite or negative light was clamped to 0 (please report this level)");
     }

@@ -357,31 +357,28 @@ pub fn form_factors(
             *results[i].lock().expect("no panics while holding the lock") = row;
         },
     );
+    let results: Vec<Vec<(u32, f64)>> = results
+        .into_iter()
+        .map(|r| r.into_inner().expect("no panics while holding the lock"))
+        .collect();
     let rows: Vec<Vec<(u32, f64)>> = (0..n)
         .into_par_iter()
         .map(|p| {
-            let lock = |k: usize| {
-                results[p * q + k]
-                    .lock()
-                    .expect("no panics while holding the lock")
-            };
-            let mut row: Vec<(u32, f64)> = Vec::with_capacity((0..q).map(|k| lock(k).len()).sum());
-            for (k, w) in ws.iter().enumerate() {
-                row.extend(lock(k).iter().map(|&(j, v)| (j, v * w)));
+            let points = &results[p * q..(p + 1) * q];
+            let mut row: Vec<(u32, f64)> = Vec::with_capacity(points.iter().map(Vec::len).sum());
+            for (r, w) in points.iter().zip(ws) {
+                row.extend(r.iter().map(|&(j, v)| (j, v * w)));
             }
             row.sort_by_key(|e| e.0);
             // Merging leaves each patch's row a third of the points' rows
             // (at three points per patch): in place, then without slack.
-            let mut merged = 0;
-            for k in 0..row.len() {
-                if merged > 0 && row[merged - 1].0 == row[k].0 {
-                    row[merged - 1].1 += row[k].1;
-                } else {
-                    row[merged] = row[k];
-                    merged += 1;
+            row.dedup_by(|next, kept| {
+                let same = next.0 == kept.0;
+                if same {
+                    kept.1 += next.1;
                 }
-            }
-            row.truncate(merged);
+                same
+            });
             row.shrink_to_fit();
             row
         })
@@ -390,10 +387,6 @@ pub fn form_factors(
     // copied into one table.
     let len: Vec<f64> = (0..n).map(|p| patches.length(p)).collect();
     let ff = FormFactors::from_raw_rows(rows, &len);
-    let results: Vec<Vec<(u32, f64)>> = results
-        .into_iter()
-        .map(|r| r.into_inner().expect("no panics while holding the lock"))
-        .collect();
     let entries = results.iter().map(Vec::len).sum();
     let mut points = PointRows {
         q,
