@@ -761,7 +761,7 @@ fn a_level_over_the_memory_limit_is_refused_with_its_estimate() {
         &o,
         &[
             "pillars.png: needs an estimated",
-            "GB of memory at its peak",
+            "of memory at its peak",
             "more than the 300 MB allowed",
             "raise the limit with --max-memory",
         ],

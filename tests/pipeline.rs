@@ -674,11 +674,11 @@ fn the_memory_estimate_counts_form_factor_entries_from_a_sample() {
             0.5,
             knobs.reach_bound,
         );
-        let (_, points, _) =
+        let (_, slopes, _) =
             transport::form_factors(&scene.geometry, &scene.patches, knobs.quad, falloff, &reach);
-        let exact = points.col.len() as u64;
+        let exact = slopes.col.len() as u64;
         let n = scene.patch_count();
-        let every = transport::estimate_point_entries(
+        let every = transport::estimate_entries(
             &scene.geometry,
             &scene.patches,
             knobs.quad,
@@ -687,7 +687,7 @@ fn the_memory_estimate_counts_form_factor_entries_from_a_sample() {
             n,
         );
         assert_eq!(every, exact, "every patch sampled: the exact count");
-        let sampled = transport::estimate_point_entries(
+        let sampled = transport::estimate_entries(
             &scene.geometry,
             &scene.patches,
             knobs.quad,

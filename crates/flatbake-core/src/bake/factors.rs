@@ -6,7 +6,7 @@
 use super::{Ctx, Log, Plan, Scene};
 use crate::gather::Kernel;
 use crate::transport::kernel::Reach;
-use crate::transport::{self, FormFactors, PointRows};
+use crate::transport::{self, FormFactors, SlopeRows};
 
 /// The form factors of a scene, whichever kernel built them.
 #[derive(Default)]
@@ -15,8 +15,8 @@ pub struct Transport {
     pub form_factors: Option<FormFactors>,
     /// The paper kernel's F as sparse rows.
     pub paper_rows: Option<Vec<Vec<(u32, f64)>>>,
-    /// The flatland kernel's per-quadrature-point rows, for patch slopes.
-    pub point_rows: Option<PointRows>,
+    /// The flatland kernel's slope rows, for patch slopes.
+    pub slope_rows: Option<SlopeRows>,
     /// Patch-point pairs left out beyond the falloff reach.
     pub culled_pairs: u64,
 }
@@ -52,7 +52,7 @@ pub fn form_factors(ctx: &Ctx, scene: &Scene, plan: &mut Plan, log: &mut Log) ->
                 0.5,
                 ctx.reach_bound,
             );
-            let (ff, points, stats) = transport::form_factors(
+            let (ff, slopes, stats) = transport::form_factors(
                 geometry,
                 patches,
                 ctx.settings.knobs.quad,
@@ -62,7 +62,7 @@ pub fn form_factors(ctx: &Ctx, scene: &Scene, plan: &mut Plan, log: &mut Log) ->
             out.culled_pairs += stats.culled_pairs;
             let lit = sees_light(scene, plan, &|i| ff.row(i).collect());
             out.form_factors = Some(ff);
-            out.point_rows = Some(points);
+            out.slope_rows = Some(slopes);
             lit
         }
         Kernel::Paper => {

@@ -41,9 +41,9 @@ pub fn gather(
     log: &mut Log,
 ) -> Gathered {
     let rad = components(scene, plan, transport, solved);
-    // The per-point rows served only the slopes: freed before the gather,
+    // The slope rows served only the slopes: freed before the gather,
     // so that the bake's peak is the larger of the two stages, not their sum.
-    transport.point_rows = None;
+    transport.slope_rows = None;
     let kk = rad.components;
     let rule = ReachRule::new(ctx, scene, solved, &rad);
     let (reached, unreached) = reachable_pixels(ctx, scene, &rad);
@@ -324,7 +324,7 @@ fn slopes(
     solved: &Solved,
     edge_e: &[Vec<f64>],
 ) -> Vec<Vec<f64>> {
-    let Some(pr) = &transport.point_rows else {
+    let Some(pr) = &transport.slope_rows else {
         return Vec::new();
     };
     if !plan.needs_form_factors() {

@@ -7,17 +7,19 @@
 //! - per pixel: the level, the lightmap and the gather's per-pixel arrays,
 //!   measured at 75 to 110 bytes per pixel on open levels (a few large
 //!   rooms, where the gather arrays dominate); counted as [`PER_PIXEL`];
+//! - per edge: the traced edges, their tiles and blocks and the candidate
+//!   lists that name them, measured at about 205 bytes per edge on a
+//!   2048 px checkerboard of one-pixel walls (8.25 million edges, 1.95 GB);
+//!   counted as [`PER_EDGE`];
 //! - per patch: materials, radiosity, solver vectors, slopes and the patch
 //!   tree; counted as [`PER_PATCH`];
-//! - per visible pair of a quadrature point and a patch: the per-point rows
-//!   of the form factors, their merged patch rows and the matrix built from
-//!   them (measured at up to 28 bytes per entry). The per-point rows are
-//!   freed before the gather, but the estimate still adds them to the
-//!   pixels' share, so it errs on the safe side (14.1 GB estimated, 10.6 GB
-//!   measured on the 8192 px benchmark);
-//!   counted as [`PER_POINT_ENTRY`] and
-//!   estimated from the exact visibility of a sample of patches
-//!   ([`transport::estimate_point_entries`]);
+//! - per entry of the patches' merged form-factor rows (a patch and a patch
+//!   that some quadrature point of it sees): the merged rows, the slope
+//!   rows and the matrix built from them, about 52 bytes per entry at the peak
+//!   of the form factors (the points' own rows are merged as soon as each
+//!   patch's last point is visited, so they are never all kept); counted
+//!   as [`PER_FACTOR_ENTRY`] and estimated from the exact visibility of a
+//!   sample of patches ([`transport::estimate_entries`]);
 //! - the dense fallback solve of systems up to the solver's fallback size,
 //!   8 bytes per matrix entry;
 //! - per-emitter responses (light layers, relight caches): 12 bytes per
@@ -35,9 +37,11 @@ use crate::transport::{self, solve::SolveSettings};
 pub const PER_PIXEL: u64 = 120;
 /// Bytes per patch outside the form factors (see the module docs).
 pub const PER_PATCH: u64 = 200;
-/// Bytes per stored entry of the per-point form-factor rows, with the
-/// patch rows and matrix built from them and the slack of growing vectors.
-pub const PER_POINT_ENTRY: u64 = 32;
+/// Bytes per entry of the patches' merged form-factor rows, with the slope
+/// rows and the matrix built from them.
+pub const PER_FACTOR_ENTRY: u64 = 64;
+/// Bytes per traced edge (see the module docs).
+pub const PER_EDGE: u64 = 220;
 /// What every bake needs whatever its size: threads, tables, buffers.
 pub const BASE: u64 = 64 << 20;
 /// Patches whose visibility is sampled for the estimate.
@@ -50,9 +54,9 @@ pub struct MemoryEstimate {
     pub bytes: u64,
     /// Level pixels.
     pub pixels: u64,
-    /// Estimated entries of the per-point form-factor rows (0 when no
-    /// bounce is solved).
-    pub point_entries: u64,
+    /// Estimated entries of the patches' merged form-factor rows (0 when
+    /// no bounce is solved).
+    pub factor_entries: u64,
 }
 
 impl MemoryEstimate {
@@ -61,7 +65,8 @@ impl MemoryEstimate {
         let level = ctx.level;
         let pixels = (level.width as u64) * (level.height as u64);
         let n = scene.patch_count() as u64;
-        let point_entries = if plan.needs_form_factors() {
+        let edges = scene.geometry.edges.len() as u64;
+        let factor_entries = if plan.needs_form_factors() {
             // The paper kernel stores one entry per visible patch pair, with
             // no reach bound: the same count at one point per patch.
             let (quad, bound) = match ctx.settings.kernel {
@@ -71,7 +76,7 @@ impl MemoryEstimate {
             let edges = &scene.geometry.edges;
             let lens: Vec<f64> = edges.iter().map(|e| e.len()).collect();
             let reach = Reach::new(&lens, &vec![1.0; edges.len()], ctx.falloff, 0.5, bound);
-            transport::estimate_point_entries(
+            transport::estimate_entries(
                 &scene.geometry,
                 &scene.patches,
                 quad,
@@ -104,14 +109,15 @@ impl MemoryEstimate {
         let bytes = BASE
             .saturating_add(pixels.saturating_mul(PER_PIXEL))
             .saturating_add(directional)
+            .saturating_add(edges.saturating_mul(PER_EDGE))
             .saturating_add(n.saturating_mul(PER_PATCH))
-            .saturating_add(point_entries.saturating_mul(PER_POINT_ENTRY))
+            .saturating_add(factor_entries.saturating_mul(PER_FACTOR_ENTRY))
             .saturating_add(dense)
             .saturating_add(responses);
         MemoryEstimate {
             bytes,
             pixels,
-            point_entries,
+            factor_entries,
         }
     }
 }

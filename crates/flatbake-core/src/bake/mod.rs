@@ -162,7 +162,7 @@ pub enum BakeError {
         "needs an estimated {} of memory at its peak ({} pixels, ~{:.1e} form-factor entries), more than the {} allowed (--max-memory; by default the memory this machine has free); bake it on a machine with more memory, or raise the limit with --max-memory {} if that much is free",
         memory::human_bytes(.estimate.bytes),
         .estimate.pixels,
-        .estimate.point_entries as f64,
+        .estimate.factor_entries as f64,
         memory::human_bytes(*.limit),
         memory::flag_value_for(.estimate.bytes)
     )]

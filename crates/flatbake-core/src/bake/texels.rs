@@ -307,7 +307,7 @@ pub fn bake_texels(
             estimate: super::MemoryEstimate {
                 bytes: floor,
                 pixels,
-                point_entries: 0,
+                factor_entries: 0,
             },
             limit,
         });

@@ -2,6 +2,8 @@
 //! symmetrised into `S` with effective lengths `D` (see the module docs of
 //! [`crate::transport`]).
 
+use std::sync::{Mutex, OnceLock};
+
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -177,50 +179,52 @@ impl FormFactors {
     }
 }
 
-/// The point-to-patch factors of every quadrature point, `q` points per
-/// patch in order (CSR). After a solve they give the radiosity at each point,
-/// `B(x) = E + rho * sum_j K(x, j) B_j`, from which each patch gets a slope.
+/// What the quadrature points of each patch say of its light's profile:
+/// `G_pj = sum_k w_k (x_k - 1/2) K(x_k, j)` (CSR, one row per patch), from
+/// which each patch gets a slope once the radiosity is solved. The points'
+/// own rows are merged into these as soon as a patch's last point is
+/// visited, so they are never all kept.
 #[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct PointRows {
+pub struct SlopeRows {
     /// Quadrature points per patch.
     pub q: usize,
-    /// Row starts, one row per quadrature point (CSR).
+    /// Row starts, one row per patch (CSR).
     pub row_ptr: Vec<usize>,
     /// Patch of each entry.
     pub col: Vec<u32>,
-    /// `K(x, j)` of each entry.
+    /// `G_pj` of each entry.
     pub val: Vec<f64>,
 }
 
-impl PointRows {
+impl SlopeRows {
     /// Per-patch slope (per unit length along the edge's axis) of the
-    /// radiosity profile through the quadrature points, least squares, limited
-    /// so that `B` stays non-negative over the patch. `b` is the solved patch
-    /// radiosity, `e` and `rho` per patch.
+    /// radiosity profile through the quadrature points, least squares,
+    /// limited so that `B` stays non-negative over the patch. `b` is the
+    /// solved patch radiosity, `e` and `rho` per patch. With the radiosity at
+    /// point `k`, `B_k = e + rho * sum_j K(x_k, j) B_j`, the least-squares
+    /// numerator `sum_k w_k (x_k - 1/2) B_k` is
+    /// `e * sum_k w_k (x_k - 1/2) + rho * sum_j G_pj B_j`.
     pub fn slopes(&self, patches: &Patches, rho: &[f64], e: &[f64], b: &[f64]) -> Vec<f64> {
         let (xs, ws) = gauss_legendre(self.q);
-        let q = xs.len();
         let den: f64 = xs
             .iter()
             .zip(ws)
             .map(|(x, w)| w * (x - 0.5) * (x - 0.5))
             .sum();
+        let odd: f64 = xs.iter().zip(ws).map(|(x, w)| w * (x - 0.5)).sum();
         (0..patches.len())
             .into_par_iter()
             .map(|p| {
                 if den == 0.0 || rho[p] == 0.0 {
                     return 0.0;
                 }
-                let mut num = 0.0;
-                for k in 0..q {
-                    let r = self.row_ptr[p * q + k]..self.row_ptr[p * q + k + 1];
-                    let h: f64 = self.col[r.clone()]
-                        .iter()
-                        .zip(&self.val[r])
-                        .map(|(&j, &v)| v * b[j as usize])
-                        .sum();
-                    num += ws[k] * (e[p] + rho[p] * h) * (xs[k] - 0.5);
-                }
+                let r = self.row_ptr[p]..self.row_ptr[p + 1];
+                let h: f64 = self.col[r.clone()]
+                    .iter()
+                    .zip(&self.val[r])
+                    .map(|(&j, &v)| v * b[j as usize])
+                    .sum();
+                let num = e[p] * odd + rho[p] * h;
                 let len = patches.length(p);
                 let g = num / (den * len);
                 // Keep B >= 0 at both ends of the patch.
@@ -267,7 +271,7 @@ fn query_points(
 /// Runs `f(point, its row)` for the quadrature points of patches `which`
 /// (point `i` belongs to `which[i / q]`): each point's exact visibility and
 /// its factors `K(x, j)` towards the patches it sees within their reach. The
-/// one visit behind both [`form_factors`] and [`estimate_point_entries`].
+/// one visit behind both [`form_factors`] and [`estimate_entries`].
 fn visit_point_rows(
     geometry: &Geometry,
     patches: &Patches,
@@ -299,13 +303,14 @@ fn visit_point_rows(
     )
 }
 
-/// An estimate of how many entries [`form_factors`] would store in its
-/// per-point rows (one per quadrature point and patch it sees), from the
-/// exact visibility of at most `samples` patches spread evenly over the
-/// patch list: their mean times the number of patches. Counts only, so it
-/// costs a small part of the form factors themselves; it lets a bake that
-/// would need more memory than the machine has be refused before it starts.
-pub fn estimate_point_entries(
+/// An estimate of how many entries [`form_factors`] would store per patch
+/// (its merged row: one entry per patch that any of its quadrature points
+/// sees), from the exact visibility of at most `samples` patches spread
+/// evenly over the patch list: their mean times the number of patches.
+/// Counts only, so it costs a small part of the form factors themselves;
+/// it lets a bake that would need more memory than the machine has be
+/// refused before it starts.
+pub fn estimate_entries(
     geometry: &Geometry,
     patches: &Patches,
     quad: usize,
@@ -318,87 +323,129 @@ pub fn estimate_point_entries(
         return 0;
     }
     let (xs, _) = gauss_legendre(quad);
+    let q = xs.len();
     let k = samples.min(n);
     // Patch i * n / k for i < k: evenly spread, deterministic.
     let picked: Vec<usize> = (0..k).map(|i| i * n / k).collect();
-    let counted = std::sync::atomic::AtomicU64::new(0);
-    visit_point_rows(geometry, patches, xs, &picked, falloff, reach, &|_, row| {
-        counted.fetch_add(row.len() as u64, std::sync::atomic::Ordering::Relaxed);
+    let seen: Vec<Mutex<Vec<u32>>> = (0..k).map(|_| Default::default()).collect();
+    visit_point_rows(geometry, patches, xs, &picked, falloff, reach, &|i, row| {
+        let mut s = seen[i / q]
+            .lock()
+            .expect("no panics while holding the lock");
+        s.extend(row.iter().map(|e| e.0));
     });
-    let counted = counted.into_inner() as f64;
-    (counted * n as f64 / k as f64).ceil() as u64
+    let counted: usize = seen
+        .into_iter()
+        .map(|s| {
+            let mut s = s.into_inner().expect("no panics while holding the lock");
+            s.sort_unstable();
+            s.dedup();
+            s.len()
+        })
+        .sum();
+    (counted as f64 * n as f64 / k as f64).ceil() as u64
 }
 
 /// Computes the form factors with `quad` Gauss-Legendre points per patch,
-/// and the per-point rows behind them.
+/// and the slope rows that the points' rows leave behind.
+///
+/// Each point's row is held only until the last point of its patch is
+/// visited (the points of a patch are neighbours, so they are visited close
+/// together); then the patch's rows are merged into its row of `F0` and its
+/// row of [`SlopeRows`] at once. The merge adds in the points' order, so
+/// `F` does not depend on the order the points were visited in.
 pub fn form_factors(
     geometry: &Geometry,
     patches: &Patches,
     quad: usize,
     falloff: Option<Falloff>,
     reach: &Reach,
-) -> (FormFactors, PointRows, VisitStats) {
+) -> (FormFactors, SlopeRows, VisitStats) {
     let (xs, ws) = gauss_legendre(quad);
     let q = xs.len();
     let n = patches.len();
-    let results: Vec<std::sync::Mutex<Vec<(u32, f64)>>> =
-        (0..n * q).map(|_| Default::default()).collect();
+    let pending: Vec<Mutex<Arrived>> = (0..n).map(|_| Default::default()).collect();
+    // Per patch, once merged: `(j, F0_pj, G_pj)`.
+    let merged: Vec<OnceLock<Vec<(u32, f64, f64)>>> = (0..n).map(|_| OnceLock::new()).collect();
     let all: Vec<usize> = (0..n).collect();
-    let stats = visit_point_rows(
-        geometry,
-        patches,
-        xs,
-        &all,
-        falloff,
-        reach,
-        &|i, mut row| {
-            // Millions of rows live until the end: none keeps growth slack.
-            row.shrink_to_fit();
-            *results[i].lock().expect("no panics while holding the lock") = row;
-        },
-    );
-    let results: Vec<Vec<(u32, f64)>> = results
-        .into_iter()
-        .map(|r| r.into_inner().expect("no panics while holding the lock"))
-        .collect();
-    let rows: Vec<Vec<(u32, f64)>> = (0..n)
-        .into_par_iter()
-        .map(|p| {
-            let points = &results[p * q..(p + 1) * q];
-            let mut row: Vec<(u32, f64)> = Vec::with_capacity(points.iter().map(Vec::len).sum());
-            for (r, w) in points.iter().zip(ws) {
-                row.extend(r.iter().map(|&(j, v)| (j, v * w)));
+    let stats = visit_point_rows(geometry, patches, xs, &all, falloff, reach, &|i, row| {
+        let (p, k) = (i / q, i % q);
+        let complete = {
+            let mut slot = pending[p].lock().expect("no panics while holding the lock");
+            let (arrived, rows) = &mut *slot;
+            if rows.is_empty() {
+                rows.resize_with(q, Vec::new);
             }
-            row.sort_by_key(|e| e.0);
-            // Merging leaves each patch's row a third of the points' rows
-            // (at three points per patch): in place, then without slack.
-            row.dedup_by(|next, kept| {
-                let same = next.0 == kept.0;
-                if same {
-                    kept.1 += next.1;
-                }
-                same
-            });
-            row.shrink_to_fit();
-            row
+            rows[k] = row;
+            *arrived += 1;
+            (*arrived == q).then(|| std::mem::take(rows))
+        };
+        if let Some(rows) = complete {
+            let row = merge_points(&rows, xs, ws);
+            merged[p].set(row).expect("each patch is merged once");
+        }
+    });
+    // A point that was never visited has an empty row, as every point of a
+    // patch that nothing reaches.
+    for (p, slot) in pending.into_iter().enumerate() {
+        let (_, mut rows) = slot.into_inner().expect("no panics while holding the lock");
+        if merged[p].get().is_none() {
+            rows.resize_with(q, Vec::new);
+            merged[p]
+                .set(merge_points(&rows, xs, ws))
+                .expect("not merged yet");
+        }
+    }
+    // One pass, patch by patch: the slope rows into one table, the F0 rows
+    // into their own vectors, each triple row freed as soon as it is split.
+    let mut slopes = SlopeRows {
+        q,
+        row_ptr: Vec::with_capacity(n + 1),
+        col: Vec::new(),
+        val: Vec::new(),
+    };
+    let entries = merged.iter().map(|m| m.get().map_or(0, Vec::len)).sum();
+    slopes.col.reserve_exact(entries);
+    slopes.val.reserve_exact(entries);
+    slopes.row_ptr.push(0);
+    let rows: Vec<Vec<(u32, f64)>> = merged
+        .into_iter()
+        .map(|m| {
+            let row = m.into_inner().unwrap_or_default();
+            slopes.col.extend(row.iter().map(|e| e.0));
+            slopes.val.extend(row.iter().map(|e| e.2));
+            slopes.row_ptr.push(slopes.col.len());
+            row.iter().map(|e| (e.0, e.1)).collect()
         })
         .collect();
-    // F first, so that the patch rows are gone before the points' rows are
-    // copied into one table.
     let len: Vec<f64> = (0..n).map(|p| patches.length(p)).collect();
     let ff = FormFactors::from_raw_rows(rows, &len);
-    let entries = results.iter().map(Vec::len).sum();
-    let mut points = PointRows {
-        q,
-        row_ptr: Vec::with_capacity(n * q + 1),
-        col: Vec::with_capacity(entries),
-        val: Vec::with_capacity(entries),
-    };
-    points.row_ptr.push(0);
-    for r in results {
-        points.col.extend(r.iter().map(|e| e.0));
-        points.val.extend(r.iter().map(|e| e.1));
-        points.row_ptr.push(points.col.len());
+    (ff, slopes, stats)
+}
+
+/// Per patch while its points are visited: how many have arrived, and
+/// their rows (in point order).
+type Arrived = (usize, Vec<Vec<(u32, f64)>>);
+
+/// A patch's row from its points' rows (in point order, weights `ws` at
+/// abscissae `xs`): `(j, sum_k w_k K(x_k, j), sum_k w_k (x_k - 1/2) K(x_k, j))`
+/// sorted by patch `j`, each sum taken in point order, without slack.
+fn merge_points(rows: &[Vec<(u32, f64)>], xs: &[f64], ws: &[f64]) -> Vec<(u32, f64, f64)> {
+    let mut row: Vec<(u32, f64, f64)> = Vec::with_capacity(rows.iter().map(Vec::len).sum());
+    for ((r, &x), &w) in rows.iter().zip(xs).zip(ws) {
+        let t = w * (x - 0.5);
+        row.extend(r.iter().map(|&(j, v)| (j, v * w, v * t)));
     }
-    (ff, points, stats)
+    // Stable: equal patches stay in point order, and are summed in it.
+    row.sort_by_key(|e| e.0);
+    row.dedup_by(|next, kept| {
+        let same = next.0 == kept.0;
+        if same {
+            kept.1 += next.1;
+            kept.2 += next.2;
+        }
+        same
+    });
+    row.shrink_to_fit();
+    row
 }

@@ -26,6 +26,6 @@ mod patches;
 pub mod solve;
 
 pub use factors::{
-    FormFactors, PointRows, estimate_point_entries, form_factors, point_factors, wanted_reach,
+    FormFactors, SlopeRows, estimate_entries, form_factors, point_factors, wanted_reach,
 };
 pub use patches::{Patches, axis_vec, clearance, normal_vec};
