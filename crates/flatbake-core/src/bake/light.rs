@@ -3,15 +3,18 @@
 //! vectors together, so that visibility is found once per pixel for all of
 //! them. Pixels in free regions that no lit edge faces are not gathered.
 
+use std::borrow::Cow;
+
 use super::radiosity::{Solved, TRACED_EMISSION};
 use super::{Ctx, GatherMethod, Log, Plan, Scene, Transport};
 use crate::gather::{self, Radiosity};
 use crate::transport::kernel::Reach;
 
 /// The gathered light.
-pub struct Gathered {
-    /// The floor pixels that were gathered, in order.
-    pub reached: Vec<[i32; 2]>,
+pub struct Gathered<'a> {
+    /// The floor pixels that were gathered, in order (the scene's own list
+    /// when every floor pixel was).
+    pub reached: Cow<'a, [[i32; 2]]>,
     /// `values[i * components + k]`: component `k` at `reached[i]`.
     pub values: Vec<f64>,
     /// With [`Settings::directional`](super::Settings::directional):
@@ -32,14 +35,14 @@ pub struct Gathered {
 }
 
 /// Gathers the light of every reachable floor pixel.
-pub fn gather(
+pub fn gather<'a>(
     ctx: &Ctx,
-    scene: &Scene,
+    scene: &'a Scene,
     plan: &Plan,
     transport: &mut Transport,
     solved: &Solved,
     log: &mut Log,
-) -> Gathered {
+) -> Gathered<'a> {
     let rad = components(scene, plan, transport, solved);
     // The slope rows served only the slopes: freed before the gather,
     // so that the bake's peak is the larger of the two stages, not their sum.
@@ -47,13 +50,10 @@ pub fn gather(
     let kk = rad.components;
     let rule = ReachRule::new(ctx, scene, solved, &rad);
     let (reached, unreached) = reachable_pixels(ctx, scene, &rad);
-    if !unreached.is_empty() && kk > 0 {
+    if unreached > 0 && kk > 0 {
         log.skip(
             "gather",
-            format!(
-                "{} floor pixels in regions no light reaches",
-                unreached.len()
-            ),
+            format!("{unreached} floor pixels in regions no light reaches"),
         );
     }
     let run = if kk == 0 || reached.is_empty() {
@@ -87,7 +87,7 @@ pub fn gather(
         directional: ctx.settings.directional,
         components: kk,
         unreached: if kk > 0 {
-            unreached.len() + run.unreached
+            unreached + run.unreached
         } else {
             scene.floor_pixels.len()
         },
@@ -274,7 +274,11 @@ fn reach(
 /// The floor pixels split into those in free regions that some lit edge
 /// faces and the rest, which receive nothing (all of them, with nothing to
 /// gather; none of them, for the exhaustive bake).
-fn reachable_pixels(ctx: &Ctx, scene: &Scene, rad: &Radiosity) -> (Vec<[i32; 2]>, Vec<[i32; 2]>) {
+fn reachable_pixels<'a>(
+    ctx: &Ctx,
+    scene: &'a Scene,
+    rad: &Radiosity,
+) -> (Cow<'a, [[i32; 2]]>, usize) {
     let geometry = &scene.geometry;
     let mut lit_comp = vec![false; geometry.component_count as usize];
     for (i, e) in geometry.edges.iter().enumerate() {
@@ -283,11 +287,19 @@ fn reachable_pixels(ctx: &Ctx, scene: &Scene, rad: &Radiosity) -> (Vec<[i32; 2]>
         }
     }
     let width = ctx.level.width;
-    scene.floor_pixels.iter().partition(|p| {
+    let lit = |p: &&[i32; 2]| {
         rad.components > 0
             && (ctx.settings.exhaustive
                 || lit_comp[geometry.components[p[1] as usize * width + p[0] as usize] as usize])
-    })
+    };
+    let all = &scene.floor_pixels;
+    let reached = all.iter().filter(lit).count();
+    if reached == all.len() {
+        (Cow::Borrowed(&all[..]), 0)
+    } else {
+        let list: Vec<[i32; 2]> = all.iter().filter(lit).copied().collect();
+        (Cow::Owned(list), all.len() - reached)
+    }
 }
 
 /// The most the gather's approximations (pairs beyond the falloff reach,

@@ -63,7 +63,7 @@ pub fn assemble(
     // With responses, the lightmap is their sum at the palette's emission, so
     // that layers (and a relight with unchanged emission) add up to it
     // exactly. It differs from the direct result only where the positivity
-    // limiter on patch slopes (`PointRows::slopes`) acts differently on one
+    // limiter on patch slopes (`SlopeRows::slopes`) acts differently on one
     // emitter's light than on the sum, a small fraction of a percent.
     if let Some(r) = &responses {
         let e: Vec<[f64; 3]> = r
@@ -209,15 +209,24 @@ fn solid_pixels(
     rgb: &mut [[f32; 3]],
 ) {
     let w = level.width;
-    let mut sum = vec![[0f64; 3]; level.width * level.height];
-    let mut count = vec![0u32; level.width * level.height];
+    // Sums only for the solid pixels with an exposed side (a slot each, in
+    // the order they are met), not for every pixel of the level.
+    let mut slot = vec![u32::MAX; level.width * level.height];
+    let mut sum: Vec<[f64; 3]> = Vec::new();
+    let mut count: Vec<u32> = Vec::new();
     for (ei, e) in g.edges.iter().enumerate() {
         let (lo, hi) = e.extent();
         let range = patches.of_edge(ei);
         let step = patches.step[ei];
         for u in lo as i32..hi as i32 {
             let px = e.solid_pixel_at(u);
-            let i = px[1] as usize * w + px[0] as usize;
+            let at = &mut slot[px[1] as usize * w + px[0] as usize];
+            if *at == u32::MAX {
+                *at = sum.len() as u32;
+                sum.push([0.0; 3]);
+                count.push(0);
+            }
+            let i = *at as usize;
             if range.is_empty() {
                 // A side facing a region no light reaches: radiosity 0.
                 count[i] += 1;
@@ -248,8 +257,9 @@ fn solid_pixels(
         }
     }
     for (i, cell) in level.cells.iter().enumerate() {
-        if matches!(cell, Cell::Solid(_)) && count[i] > 0 {
-            rgb[i] = [0, 1, 2].map(|c| light_f32(sum[i][c] / count[i] as f64));
+        let j = slot[i] as usize;
+        if matches!(cell, Cell::Solid(_)) && slot[i] != u32::MAX && count[j] > 0 {
+            rgb[i] = [0, 1, 2].map(|c| light_f32(sum[j][c] / count[j] as f64));
         }
     }
 }

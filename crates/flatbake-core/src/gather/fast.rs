@@ -9,7 +9,7 @@ use crate::transport::kernel::Reach;
 use crate::transport::kernel::{Falloff, GatherLine, GatherPoints};
 use crate::transport::{Patches, wanted_reach};
 use crate::visibility::marks::Marks;
-use crate::visibility::{Span, TileTree, View, VisitStats, for_each_visibility_counted};
+use crate::visibility::{Span, TileTree, View, VisitStats, centre, for_each_visibility_counted};
 
 use super::patch_tree::node_range;
 use super::*;
@@ -473,7 +473,9 @@ thread_local! {
 
 /// The floor pixels of a level, as query points.
 pub fn floor_pixels(level: &Level) -> Vec<[i32; 2]> {
-    let mut v = Vec::new();
+    // Sized once: it lives through the bake.
+    let n = level.cells.iter().filter(|&&c| c == Cell::Floor).count();
+    let mut v = Vec::with_capacity(n);
     for y in 0..level.height {
         for x in 0..level.width {
             if level.cell(x, y) == Cell::Floor {
@@ -614,22 +616,18 @@ impl Exact<'_> {
                 0
             }
         ];
-        let pos: Vec<[f64; 2]> = pixels
-            .iter()
-            .map(|p| [p[0] as f64 + 0.5, p[1] as f64 + 0.5])
-            .collect();
         let shared = Disjoint::new(&mut out);
         let shared_sig = Disjoint::new(&mut sigs);
         let directional = self.directional;
         let mut moments = vec![0.0; if directional { pixels.len() * 2 * k } else { 0 }];
         let shared_moments = Disjoint::new(&mut moments);
-        // What each pixel merged, summed afterwards (a lock or an atomic shared
-        // by every pixel costs more than the pixel's own bookkeeping).
-        let mut merged = vec![[0u32; 2]; pixels.len()];
-        let shared_merged = Disjoint::new(&mut merged);
+        // What the pixels merged, summed per thread (a lock or an atomic
+        // shared by every pixel costs more than the pixel's own bookkeeping,
+        // and a pair per pixel is 8 bytes of the gather's peak).
+        let merged = PerThread::new();
         let stats = for_each_visibility_counted(
             self.geometry,
-            &pos,
+            None,
             pixels,
             &|_| View::Full,
             self.reach_max,
@@ -647,7 +645,7 @@ impl Exact<'_> {
                 };
                 let (c, sig) = SCRATCH.with(|sc| {
                     let sc = &mut *sc.borrow_mut();
-                    let c = pixel_light(light, pos[i], spans, acc, sc);
+                    let c = pixel_light(light, centre(pixels[i]), spans, acc, sc);
                     if directional {
                         let (mut small, mut big) = ([0.0; 6], Vec::new());
                         let m = if k <= 3 {
@@ -656,7 +654,7 @@ impl Exact<'_> {
                             big.resize(2 * k, 0.0);
                             &mut big[..]
                         };
-                        super::directional::pixel_moments(light, pos[i], spans, sc, m);
+                        super::directional::pixel_moments(light, centre(pixels[i]), spans, sc, m);
                         for (j, &v) in m.iter().enumerate() {
                             // SAFETY: each pixel index is visited exactly once.
                             unsafe { shared_moments.write(i * 2 * k + j, v) };
@@ -667,11 +665,9 @@ impl Exact<'_> {
                         signatures.map(|rel| signature(light, spans, sc, acc, rel)),
                     )
                 });
-                let c = [c.pieces, c.patch_pieces].map(|v| v.min(u32::MAX as u64) as u32);
-                // SAFETY: each pixel index is visited exactly once.
-                unsafe { shared_merged.write(i, c) };
+                merged.add([c.pieces, c.patch_pieces]);
                 for (c, &v) in acc.iter().enumerate() {
-                    // SAFETY: as above.
+                    // SAFETY: each pixel index is visited exactly once.
                     unsafe { shared.write(i * k + c, v) };
                 }
                 if let Some(h) = sig {
@@ -680,11 +676,12 @@ impl Exact<'_> {
                 }
             },
         );
-        let counts = merged.iter().fold(GatherCounts::default(), |mut t, c| {
-            t.pieces += c[0] as u64;
-            t.patch_pieces += c[1] as u64;
-            t
-        });
+        let [pieces, patch_pieces] = merged.sum();
+        let counts = GatherCounts {
+            pieces,
+            patch_pieces,
+            ..GatherCounts::default()
+        };
         Pass {
             values: out,
             moments,

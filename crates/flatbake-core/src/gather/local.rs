@@ -21,7 +21,7 @@
 use rayon::prelude::*;
 
 use crate::geometry::Geometry;
-use crate::visibility::{Span, Sweeper, View, Viewpoint, VisitStats, Wanted};
+use crate::visibility::{Span, Sweeper, View, Viewpoint, VisitStats, Wanted, centre};
 
 use super::Disjoint;
 use super::fast::{Exact, GatherCounts, PixelScratch, pixel_light, signature};
@@ -433,23 +433,20 @@ fn run_recording(
     ];
     let mut seen: Vec<Vec<u32>> = vec![Vec::new(); pixels.len()];
     let mut merged = vec![[0u32; 3]; pixels.len()];
-    let pos: Vec<[f64; 2]> = pixels
-        .iter()
-        .map(|p| [p[0] as f64 + 0.5, p[1] as f64 + 0.5])
-        .collect();
     {
         let (shared, shared_sig) = (Disjoint::new(&mut out), Disjoint::new(&mut sigs));
         let shared_moments = Disjoint::new(&mut moments);
         let (shared_seen, shared_merged) = (Disjoint::new(&mut seen), Disjoint::new(&mut merged));
         crate::visibility::for_each_visibility_counted(
             exact.geometry,
-            &pos,
+            None,
             pixels,
             &|_| View::Full,
             exact.reach_max,
             None,
             &|_| {},
             &|i, spans| {
+                let at = centre(pixels[i]);
                 let mut edges: Vec<u32> = spans.iter().map(|s| s.edge).collect();
                 edges.sort_unstable();
                 edges.dedup();
@@ -458,12 +455,10 @@ fn run_recording(
                 let mut m = vec![0.0; km];
                 let (c, sig, dropped) = BUFFERS.with(|b| {
                     let b = &mut *b.borrow_mut();
-                    let dropped = within_reach(exact, pos[i], spans, &mut b.lit);
-                    let c = pixel_light(light, pos[i], &b.lit, &mut acc, &mut b.scratch);
+                    let dropped = within_reach(exact, at, spans, &mut b.lit);
+                    let c = pixel_light(light, at, &b.lit, &mut acc, &mut b.scratch);
                     if km > 0 {
-                        super::directional::pixel_moments(
-                            light, pos[i], &b.lit, &b.scratch, &mut m,
-                        );
+                        super::directional::pixel_moments(light, at, &b.lit, &b.scratch, &mut m);
                     }
                     let sig = signatures.map(|rel| signature(light, &b.lit, &b.scratch, &acc, rel));
                     (c, sig, dropped)

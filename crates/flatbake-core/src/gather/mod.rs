@@ -107,6 +107,44 @@ impl Kernel {
     }
 }
 
+/// Counters summed over parallel tasks, one slot per worker thread of the
+/// current rayon pool (and one for any other thread), each on its own cache
+/// line: a thread adds to its own slot without contention.
+pub(crate) struct PerThread {
+    slots: Vec<Slot>,
+}
+
+#[repr(align(64))]
+#[derive(Default)]
+struct Slot([std::sync::atomic::AtomicU64; 2]);
+
+impl PerThread {
+    pub(crate) fn new() -> Self {
+        PerThread {
+            slots: (0..=rayon::current_num_threads())
+                .map(|_| Slot::default())
+                .collect(),
+        }
+    }
+
+    /// Adds `v` to this thread's counters.
+    pub(crate) fn add(&self, v: [u64; 2]) {
+        use std::sync::atomic::Ordering::Relaxed;
+        let last = self.slots.len() - 1;
+        let slot = &self.slots[rayon::current_thread_index().map_or(last, |t| t.min(last))];
+        slot.0[0].fetch_add(v[0], Relaxed);
+        slot.0[1].fetch_add(v[1], Relaxed);
+    }
+
+    /// The counters summed over every thread.
+    pub(crate) fn sum(&self) -> [u64; 2] {
+        use std::sync::atomic::Ordering::Relaxed;
+        self.slots.iter().fold([0, 0], |t, s| {
+            [t[0] + s.0[0].load(Relaxed), t[1] + s.0[1].load(Relaxed)]
+        })
+    }
+}
+
 /// Shared output slice written at disjoint indices from parallel tasks.
 pub(crate) struct Disjoint<'a, T> {
     ptr: *mut T,

@@ -114,15 +114,31 @@ pub fn for_each_visibility<F>(
 where
     F: Fn(usize, &[Span]) + Sync,
 {
-    for_each_visibility_counted(geometry, pos, pixel, view, reach_max, reach2, &|_| {}, f)
+    for_each_visibility_counted(
+        geometry,
+        Some(pos),
+        pixel,
+        view,
+        reach_max,
+        reach2,
+        &|_| {},
+        f,
+    )
+}
+
+/// The centre of pixel `px`, where a floor gather asks.
+pub fn centre(px: [i32; 2]) -> [f64; 2] {
+    [px[0] as f64 + 0.5, px[1] as f64 + 0.5]
 }
 
 /// [`for_each_visibility`], calling `done(n)` after each leaf tile with the
-/// number of points it held, for progress reports.
+/// number of points it held, for progress reports. Without `pos` the points
+/// are the pixels' [`centre`]s, not stored per point (a floor gather's
+/// millions of pixels).
 #[allow(clippy::too_many_arguments)]
 pub fn for_each_visibility_counted<F>(
     geometry: &Geometry,
-    pos: &[[f64; 2]],
+    pos: Option<&[[f64; 2]]>,
     pixel: &[[i32; 2]],
     view: &(dyn Fn(usize) -> View + Sync),
     reach_max: f64,
@@ -134,10 +150,8 @@ where
     F: Fn(usize, &[Span]) + Sync,
 {
     // A floor gather asks at pixel centres only: its regions cull more.
-    let centres = pos
-        .iter()
-        .zip(pixel)
-        .all(|(p, px)| p[0] == px[0] as f64 + 0.5 && p[1] == px[1] as f64 + 0.5);
+    let centres = pos.is_none_or(|pos| pos.iter().zip(pixel).all(|(&p, &px)| p == centre(px)));
+    let at = |i: usize| pos.map_or_else(|| centre(pixel[i]), |pos| pos[i]);
     let tree = TileTree::new(geometry, centres);
     let blocks = Blocks::new(geometry);
     let grid = PointGrid::new(geometry.width, geometry.height, tree.leaf as usize, pixel);
@@ -193,7 +207,7 @@ where
                             dropped += sweeper.sweep_wanted(
                                 &geometry.edges,
                                 cands,
-                                Viewpoint::new(pos[i], view(i), comp),
+                                Viewpoint::new(at(i), view(i), comp),
                                 reach2.map(|reach2| Wanted { reach2, class }),
                                 spans,
                             )
@@ -204,7 +218,7 @@ where
                             }
                             dropped += sweeper.walk_wanted(
                                 &blocks,
-                                Viewpoint::new(pos[i], view(i), comp),
+                                Viewpoint::new(at(i), view(i), comp),
                                 reach_max,
                                 seeds,
                                 reach2.map(|reach2| Wanted {
