@@ -5,8 +5,9 @@
 //!
 //! What grows with a level (docs/robustness.md#memory):
 //! - per pixel: the level, the lightmap and the gather's per-pixel arrays,
-//!   measured at 75 to 110 bytes per pixel on open levels (a few large
-//!   rooms, where the gather arrays dominate); counted as [`PER_PIXEL`];
+//!   measured at about 80 bytes per pixel on the 2048 px benchmark and 75
+//!   on the 8192 px one (a few large rooms, where the gather arrays
+//!   dominate); counted as [`PER_PIXEL`];
 //! - per edge: the traced edges, their tiles and blocks and the candidate
 //!   lists that name them, measured at about 205 bytes per edge on a
 //!   2048 px checkerboard of one-pixel walls (8.25 million edges, 1.95 GB);
@@ -34,7 +35,7 @@ use crate::transport::kernel::Reach;
 use crate::transport::{self, solve::SolveSettings};
 
 /// Bytes per level pixel outside the form factors (see the module docs).
-pub const PER_PIXEL: u64 = 120;
+pub const PER_PIXEL: u64 = 100;
 /// Bytes per patch outside the form factors (see the module docs).
 pub const PER_PATCH: u64 = 200;
 /// Bytes per entry of the patches' merged form-factor rows, with the slope
