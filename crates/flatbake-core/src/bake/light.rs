@@ -293,12 +293,14 @@ fn reachable_pixels<'a>(
                 || lit_comp[geometry.components[p[1] as usize * width + p[0] as usize] as usize])
     };
     let all = &scene.floor_pixels;
-    let reached = all.iter().filter(lit).count();
-    if reached == all.len() {
-        (Cow::Borrowed(&all[..]), 0)
-    } else {
-        let list: Vec<[i32; 2]> = all.iter().filter(lit).copied().collect();
-        (Cow::Owned(list), all.len() - reached)
+    match all.iter().position(|p| !lit(&p)) {
+        None => (Cow::Borrowed(&all[..]), 0),
+        Some(first) => {
+            let mut list = all[..first].to_vec();
+            list.extend(all[first + 1..].iter().filter(lit));
+            let unreached = all.len() - list.len();
+            (Cow::Owned(list), unreached)
+        }
     }
 }
 

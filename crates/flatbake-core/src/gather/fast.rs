@@ -624,7 +624,7 @@ impl Exact<'_> {
         // What the pixels merged, summed per thread (a lock or an atomic
         // shared by every pixel costs more than the pixel's own bookkeeping,
         // and a pair per pixel is 8 bytes of the gather's peak).
-        let merged = PerThread::new();
+        let merged = PerThread::<2>::new();
         let stats = for_each_visibility_counted(
             self.geometry,
             None,

@@ -23,8 +23,8 @@ use rayon::prelude::*;
 use crate::geometry::Geometry;
 use crate::visibility::{Span, Sweeper, View, Viewpoint, VisitStats, Wanted, centre};
 
-use super::Disjoint;
 use super::fast::{Exact, GatherCounts, PixelScratch, pixel_light, signature};
+use super::{Disjoint, PerThread};
 
 /// Spacing of the anchor pixels, in pixels.
 pub const ANCHOR: i32 = 4;
@@ -335,7 +335,7 @@ impl Lists {
                     let mut m = vec![0.0; km];
                     for (j, &i) in gr.pixels.iter().enumerate() {
                         let px = pixels[i];
-                        let p = [px[0] as f64 + 0.5, px[1] as f64 + 0.5];
+                        let p = centre(px);
                         let comp = g.components[px[1] as usize * g.width + px[0] as usize];
                         b.spans.clear();
                         tally[2] += b.sweeper.sweep_wanted(
@@ -432,11 +432,12 @@ fn run_recording(
         }
     ];
     let mut seen: Vec<Vec<u32>> = vec![Vec::new(); pixels.len()];
-    let mut merged = vec![[0u32; 3]; pixels.len()];
+    // Pieces, patch pieces and pairs beyond reach, summed per thread.
+    let merged = PerThread::<3>::new();
     {
         let (shared, shared_sig) = (Disjoint::new(&mut out), Disjoint::new(&mut sigs));
         let shared_moments = Disjoint::new(&mut moments);
-        let (shared_seen, shared_merged) = (Disjoint::new(&mut seen), Disjoint::new(&mut merged));
+        let shared_seen = Disjoint::new(&mut seen);
         crate::visibility::for_each_visibility_counted(
             exact.geometry,
             None,
@@ -463,10 +464,9 @@ fn run_recording(
                     let sig = signatures.map(|rel| signature(light, &b.lit, &b.scratch, &acc, rel));
                     (c, sig, dropped)
                 });
-                let c = [c.pieces, c.patch_pieces, dropped].map(|v| v.min(u32::MAX as u64) as u32);
+                merged.add([c.pieces, c.patch_pieces, dropped]);
                 // SAFETY: each pixel index is visited exactly once.
                 unsafe {
-                    shared_merged.write(i, c);
                     shared_seen.write(i, edges);
                     for (c, &v) in acc.iter().enumerate() {
                         shared.write(i * k + c, v);
@@ -481,13 +481,12 @@ fn run_recording(
             },
         );
     }
-    let mut counts = GatherCounts::default();
-    let mut dropped = 0;
-    for c in &merged {
-        counts.pieces += c[0] as u64;
-        counts.patch_pieces += c[1] as u64;
-        dropped += c[2] as u64;
-    }
+    let [pieces, patch_pieces, dropped] = merged.sum();
+    let counts = GatherCounts {
+        pieces,
+        patch_pieces,
+        ..GatherCounts::default()
+    };
     let pass = super::fast::Pass {
         values: out,
         moments,

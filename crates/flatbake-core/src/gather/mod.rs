@@ -107,41 +107,40 @@ impl Kernel {
     }
 }
 
-/// Counters summed over parallel tasks, one slot per worker thread of the
-/// current rayon pool (and one for any other thread), each on its own cache
-/// line: a thread adds to its own slot without contention.
-pub(crate) struct PerThread {
-    slots: Vec<Slot>,
+/// `N` counters summed over parallel tasks, one slot per worker thread of
+/// the current rayon pool (and one for any other thread), each on its own
+/// cache line: a thread adds to its own slot without contention, and no
+/// task keeps counts of its own to be summed afterwards.
+pub(crate) struct PerThread<const N: usize> {
+    slots: Vec<Slot<N>>,
 }
 
 #[repr(align(64))]
-#[derive(Default)]
-struct Slot([std::sync::atomic::AtomicU64; 2]);
+struct Slot<const N: usize>([std::sync::atomic::AtomicU64; N]);
 
-impl PerThread {
+impl<const N: usize> PerThread<N> {
     pub(crate) fn new() -> Self {
         PerThread {
             slots: (0..=rayon::current_num_threads())
-                .map(|_| Slot::default())
+                .map(|_| Slot(std::array::from_fn(|_| Default::default())))
                 .collect(),
         }
     }
 
     /// Adds `v` to this thread's counters.
-    pub(crate) fn add(&self, v: [u64; 2]) {
+    pub(crate) fn add(&self, v: [u64; N]) {
         use std::sync::atomic::Ordering::Relaxed;
         let last = self.slots.len() - 1;
         let slot = &self.slots[rayon::current_thread_index().map_or(last, |t| t.min(last))];
-        slot.0[0].fetch_add(v[0], Relaxed);
-        slot.0[1].fetch_add(v[1], Relaxed);
+        for (c, v) in slot.0.iter().zip(v) {
+            c.fetch_add(v, Relaxed);
+        }
     }
 
     /// The counters summed over every thread.
-    pub(crate) fn sum(&self) -> [u64; 2] {
+    pub(crate) fn sum(&self) -> [u64; N] {
         use std::sync::atomic::Ordering::Relaxed;
-        self.slots.iter().fold([0, 0], |t, s| {
-            [t[0] + s.0[0].load(Relaxed), t[1] + s.0[1].load(Relaxed)]
-        })
+        std::array::from_fn(|c| self.slots.iter().map(|s| s.0[c].load(Relaxed)).sum())
     }
 }
 

@@ -53,7 +53,7 @@ pub fn gather_naive(
     out.par_chunks_mut(k)
         .zip(pixels.par_iter())
         .for_each(|(acc, px)| {
-            let p = [px[0] as f64 + 0.5, px[1] as f64 + 0.5];
+            let p = crate::visibility::centre(*px);
             let comp = geometry.components[px[1] as usize * geometry.width + px[0] as usize];
             for pt in 0..patches.len() {
                 let ei = patches.edge[pt] as usize;

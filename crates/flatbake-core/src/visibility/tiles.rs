@@ -384,7 +384,7 @@ impl<'g> TileTree<'g> {
             bins,
         } = scratch;
         for &(comp, _, px) in reps {
-            let q = [px[0] as f64 + 0.5, px[1] as f64 + 0.5];
+            let q = super::centre(px);
             spans.clear();
             sweeper.sweep(&g.edges, cands, Viewpoint::new(q, View::Full, comp), spans);
             if spans.is_empty() {
