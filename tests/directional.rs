@@ -1012,6 +1012,7 @@ fn curved_reflected_light_matches_a_quadrature_of_the_patches() {
             decide: 0..2,
             progress: None,
             lattice: None,
+            anchors: None,
             directional: true,
         };
         let got = gather_with_moments(&g, &patches, &rad, &pixels, &options);

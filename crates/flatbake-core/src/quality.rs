@@ -45,6 +45,12 @@ pub struct Knobs {
     /// interpolated in between where the probes show it is smooth to within
     /// this fraction. `None`: every floor pixel is gathered exactly.
     pub lattice: Option<f64>,
+    /// Block sweeps: a pixel whose full visibility query would walk the
+    /// level's blocks is swept over what the anchor pixels this many pixels
+    /// apart around it see ([`crate::gather::GatherOptions::anchors`]; the
+    /// lattice's pixels too). `None`: a full query at every pixel.
+    #[serde(default)]
+    pub anchors: Option<i32>,
 }
 
 /// The lattice tolerance of `draft` (see [`Knobs::lattice`]).
@@ -69,6 +75,7 @@ impl Quality {
                 tolerance: 1e-4,
                 reach_bound: 1e-4,
                 lattice: Some(DRAFT_LATTICE),
+                anchors: Some(crate::gather::lattice::ANCHOR),
             },
             Quality::Normal => Knobs {
                 patch_len: 4.0,
@@ -77,6 +84,7 @@ impl Quality {
                 tolerance: 1e-6,
                 reach_bound: 1e-5,
                 lattice: None,
+                anchors: Some(crate::gather::lattice::ANCHOR),
             },
             Quality::High => Knobs {
                 patch_len: 2.0,
@@ -85,6 +93,7 @@ impl Quality {
                 tolerance: 1e-8,
                 reach_bound: 1e-6,
                 lattice: None,
+                anchors: None,
             },
             Quality::Reference => Knobs {
                 patch_len: 0.5,
@@ -93,6 +102,7 @@ impl Quality {
                 tolerance: 1e-10,
                 reach_bound: 0.0,
                 lattice: None,
+                anchors: None,
             },
         }
     }

@@ -158,6 +158,7 @@ fn run(
                 decide: rule.decide,
                 progress: ctx.gather_progress.map(gather::OnProgress),
                 lattice: settings.knobs.lattice.filter(|_| !settings.exhaustive),
+                anchors: settings.knobs.anchors.filter(|_| !settings.exhaustive),
                 directional: settings.directional,
             };
             let gather::Gather {
@@ -181,10 +182,10 @@ fn run(
                 log.skip(
                     "pixels",
                     format!(
-                        "{} of {} floor pixels gathered with a sweep over the edges that the anchors at the corners of their {} px block see and the edges within {} px of it, instead of a full visibility query (exact for those edges; a distant edge that no anchor sees is missed)",
+                        "{} of {} floor pixels gathered with a sweep over the edges that the anchors at the corners of their {} px block and around it see and the edges within {} px of it, instead of a full visibility query that would walk the level (exact for those edges; a distant edge that no anchor sees is missed)",
                         counts.local,
                         reached.len(),
-                        gather::lattice::ANCHOR,
+                        options.anchors.unwrap_or(gather::lattice::ANCHOR),
                         gather::lattice::NEAR,
                     ),
                 );

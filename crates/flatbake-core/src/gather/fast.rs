@@ -9,7 +9,7 @@ use crate::transport::kernel::Reach;
 use crate::transport::kernel::{Falloff, GatherLine, GatherPoints};
 use crate::transport::{Patches, wanted_reach};
 use crate::visibility::marks::Marks;
-use crate::visibility::{Span, TileTree, View, VisitStats, centre, for_each_visibility_counted};
+use crate::visibility::{Span, TileTree, View, VisitStats, centre, for_each_visibility_deferring};
 
 use super::patch_tree::node_range;
 use super::*;
@@ -127,6 +127,12 @@ pub struct GatherOptions<'a> {
     /// smooth to within this relative tolerance ([`super::lattice`]; the
     /// flatland kernel only). `None`: gather every pixel exactly.
     pub lattice: Option<f64>,
+    /// Block sweeps ([`super::local`]; the flatland kernel only): a pixel
+    /// whose full visibility query would walk the level's blocks is swept
+    /// over what the anchor pixels this many pixels apart around it see,
+    /// where it can. `None`: a full query at every pixel (the lattice, if
+    /// any, then uses [`super::local::ANCHOR`]).
+    pub anchors: Option<i32>,
     /// Also compute the first circular moments of every pixel's light
     /// (`gather/directional.rs`; the flatland kernel only). Default off.
     pub directional: bool,
@@ -521,6 +527,7 @@ pub fn gather_with_moments(
         ref decide,
         progress,
         lattice,
+        anchors,
         directional,
     } = *options;
     let tree = PatchTree::new(
@@ -552,7 +559,11 @@ pub fn gather_with_moments(
     };
     match lattice {
         Some(relative) if kernel == Kernel::Flatland => {
-            super::lattice::gather(&exact, pixels, relative, tolerance)
+            let spacing = anchors.unwrap_or(super::local::ANCHOR);
+            super::lattice::gather(&exact, pixels, relative, tolerance, spacing)
+        }
+        None if kernel == Kernel::Flatland && anchors.is_some() => {
+            super::local::gather_all(&exact, pixels, anchors.unwrap_or(super::local::ANCHOR))
         }
         _ => {
             let pass = exact.run(pixels, None);
@@ -605,6 +616,18 @@ impl Exact<'_> {
     /// Gathers `pixels` exactly, with their [`signature`]s for the given
     /// relative tolerance if asked for.
     pub fn run(&self, pixels: &[[i32; 2]], signatures: Option<f64>) -> Pass {
+        self.run_deferring(pixels, signatures, None)
+    }
+
+    /// [`Exact::run`]; with `defer`, a pixel whose query would walk the
+    /// level's blocks is passed to it instead and its values are left 0
+    /// ([`crate::visibility::for_each_visibility_deferring`]).
+    pub fn run_deferring(
+        &self,
+        pixels: &[[i32; 2]],
+        signatures: Option<f64>,
+        defer: Option<&(dyn Fn(usize) + Sync)>,
+    ) -> Pass {
         let (light, rad) = (self.light, self.light.rad);
         let k = rad.components;
         let mut out = vec![0.0; pixels.len() * k];
@@ -625,7 +648,7 @@ impl Exact<'_> {
         // shared by every pixel costs more than the pixel's own bookkeeping,
         // and a pair per pixel is 8 bytes of the gather's peak).
         let merged = PerThread::<2>::new();
-        let stats = for_each_visibility_counted(
+        let stats = for_each_visibility_deferring(
             self.geometry,
             None,
             pixels,
@@ -633,6 +656,7 @@ impl Exact<'_> {
             self.reach_max,
             Some(self.reach2),
             &|n| self.tally.add(n),
+            defer,
             &|i, spans| {
                 // Bakes have at most three channels: no allocation per pixel.
                 let mut small = [0.0; 3];

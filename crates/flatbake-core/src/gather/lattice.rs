@@ -33,7 +33,13 @@ pub const STEPS: [i32; 2] = [8, 4];
 /// interpolated when, in every component, each probe's light differs from
 /// the mean of the corners it lies between by at most `relative` of the
 /// larger of the two plus `absolute`.
-pub(super) fn gather(exact: &Exact, pixels: &[[i32; 2]], relative: f64, absolute: f64) -> Gather {
+pub(super) fn gather(
+    exact: &Exact,
+    pixels: &[[i32; 2]],
+    relative: f64,
+    absolute: f64,
+    spacing: i32,
+) -> Gather {
     let g = exact.geometry;
     let (w, h) = (g.width as i32, g.height as i32);
     let k = exact.components();
@@ -69,7 +75,7 @@ pub(super) fn gather(exact: &Exact, pixels: &[[i32; 2]], relative: f64, absolute
     let mut stats = VisitStats::default();
     let mut counts = GatherCounts::default();
     // What the anchors see, for the sweeps of the pixels between them.
-    let mut lists = local::Lists::new(pixels.len());
+    let mut lists = local::Lists::new(spacing);
     // Top-left corners of the cells that passed at the previous spacing.
     let mut passed: std::collections::HashSet<[i32; 2]> = Default::default();
     for (level, &step) in STEPS.iter().enumerate() {

@@ -149,6 +149,28 @@ pub fn for_each_visibility_counted<F>(
 where
     F: Fn(usize, &[Span]) + Sync,
 {
+    for_each_visibility_deferring(geometry, pos, pixel, view, reach_max, reach2, done, None, f)
+}
+
+/// [`for_each_visibility_counted`]; with `defer`, a point that would walk
+/// the level's blocks (no short candidate list in its leaf tile, or a long
+/// list that culling left almost whole) is passed to `defer` instead of
+/// queried, `f` is not called for it and `done` does not count it.
+#[allow(clippy::too_many_arguments)]
+pub fn for_each_visibility_deferring<F>(
+    geometry: &Geometry,
+    pos: Option<&[[f64; 2]]>,
+    pixel: &[[i32; 2]],
+    view: &(dyn Fn(usize) -> View + Sync),
+    reach_max: f64,
+    reach2: Option<&[f64]>,
+    done: &(dyn Fn(usize) + Sync),
+    defer: Option<&(dyn Fn(usize) + Sync)>,
+    f: &F,
+) -> VisitStats
+where
+    F: Fn(usize, &[Span]) + Sync,
+{
     // A floor gather asks at pixel centres only: its regions cull more.
     let centres = pos.is_none_or(|pos| pos.iter().zip(pixel).all(|(&p, &px)| p == centre(px)));
     let at = |i: usize| pos.map_or_else(|| centre(pixel[i]), |pos| pos[i]);
@@ -179,7 +201,7 @@ where
                 })
             })
             .collect();
-        SWEEPER.with(|cell| {
+        let deferred = SWEEPER.with(|cell| {
             let (sweeper, spans, seeds) = &mut *cell.borrow_mut();
             let mut skipped = 0;
             let mut dropped = 0;
@@ -188,9 +210,21 @@ where
             // Per region with a long open list: sweep it (`Some(true)`) or
             // walk, decided by what its first point sees.
             let mut sweep_open: Vec<Option<bool>> = vec![None; leaf.regions.len()];
+            let mut deferred = 0;
             for &i in grid.in_leaf(leaf.rect) {
                 let i = i as usize;
                 let px = pixel[i];
+                if let Some(defer) = defer {
+                    let region = leaf.region_at(px);
+                    let short = region.is_some_and(|r| {
+                        leaf.regions[r].candidates.is_some() && !leaf.regions[r].open
+                    });
+                    if !short && !region.is_some_and(|r| dark[r]) {
+                        defer(i);
+                        deferred += 1;
+                        continue;
+                    }
+                }
                 let comp = geometry.components[px[1] as usize * geometry.width + px[0] as usize];
                 spans.clear();
                 let region = leaf.region_at(px);
@@ -250,8 +284,9 @@ where
             }
             unreached.fetch_add(skipped, std::sync::atomic::Ordering::Relaxed);
             left_out.fetch_add(dropped, std::sync::atomic::Ordering::Relaxed);
+            deferred
         });
-        done(grid.in_leaf(leaf.rect).len());
+        done(grid.in_leaf(leaf.rect).len() - deferred);
     });
     VisitStats {
         culled_pairs: culled_pairs + left_out.into_inner(),
