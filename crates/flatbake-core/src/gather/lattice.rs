@@ -75,7 +75,7 @@ pub(super) fn gather(
     let mut stats = VisitStats::default();
     let mut counts = GatherCounts::default();
     // What the anchors see, for the sweeps of the pixels between them.
-    let mut lists = local::Lists::new(spacing);
+    let mut lists = local::Lists::new(spacing, false);
     // Top-left corners of the cells that passed at the previous spacing.
     let mut passed: std::collections::HashSet<[i32; 2]> = Default::default();
     for (level, &step) in STEPS.iter().enumerate() {

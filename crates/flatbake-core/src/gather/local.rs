@@ -117,6 +117,8 @@ pub(super) struct Lists {
     near: Option<Near>,
     /// Spacing of the anchors, in pixels.
     spacing: i32,
+    /// Also the anchors of the ring around a block ([`Lists::new`]).
+    ring: bool,
 }
 
 /// A block's pixels to sweep, and the anchors whose lists they use.
@@ -134,72 +136,24 @@ struct Group {
 pub(super) type Out<'a> = (&'a mut [f64], &'a mut [f64], &'a mut [u64], &'a mut [u8]);
 
 impl Lists {
-    pub fn new(spacing: i32) -> Lists {
+    /// Lists for anchors `spacing` px apart; with `ring`, a block's list
+    /// also holds what the anchors of the ring around it see.
+    pub fn new(spacing: i32, ring: bool) -> Lists {
         Lists {
             spacing,
+            ring,
             seen: Default::default(),
             near: None,
         }
     }
 
     /// Gathers the pixels `want` (indices into `pixels`, found by position
-    /// with `index`): those whose full query would sweep their tile's short
-    /// list by that query; of the others, anchors and pixels with no block
-    /// that is floor of their own free region throughout by a full query,
-    /// the rest by a sweep over their block's list. The anchors a block
-    /// needs are gathered too. With `signatures`, each pixel's signature as
-    /// in [`Exact::run`].
+    /// with `index`): anchors, and pixels with no block that is floor of
+    /// their own free region throughout, by a full query; the others by a
+    /// sweep over their block's list. The anchors a block needs are
+    /// gathered too. With `signatures`, each pixel's signature as in
+    /// [`Exact::run`].
     pub fn gather(
-        &mut self,
-        exact: &Exact,
-        pixels: &[[i32; 2]],
-        index: &dyn Fn(i32, i32) -> Option<usize>,
-        want: &[usize],
-        signatures: Option<f64>,
-        (values, moments, sigs, state): Out,
-    ) -> (VisitStats, GatherCounts) {
-        let k = exact.components();
-        let km = if exact.directional { 2 * k } else { 0 };
-        let mut stats = VisitStats::default();
-        let mut counts = GatherCounts::default();
-        // Pixels whose full query sweeps a short list of their tile cost no
-        // more than a block sweep: gathered so, exactly. The others (whose
-        // query would walk the level's blocks) go on below.
-        let pts: Vec<[i32; 2]> = want.iter().map(|&i| pixels[i]).collect();
-        let (pass, deferred) = run_listed(exact, &pts, signatures);
-        let mut walks = vec![false; want.len()];
-        for &j in &deferred {
-            walks[j] = true;
-        }
-        for (j, &i) in want.iter().enumerate().filter(|&(j, _)| !walks[j]) {
-            values[i * k..(i + 1) * k].copy_from_slice(&pass.values[j * k..(j + 1) * k]);
-            moments[i * km..(i + 1) * km].copy_from_slice(&pass.moments[j * km..(j + 1) * km]);
-            if signatures.is_some() {
-                sigs[i] = pass.signature[j];
-            }
-            state[i] = 1;
-        }
-        stats.culled_pairs += pass.stats.culled_pairs;
-        stats.unreached += pass.stats.unreached;
-        counts += pass.counts;
-        drop(pass);
-        let want: Vec<usize> = deferred.iter().map(|&j| want[j]).collect();
-        let (s, c) = self.gather_walked(
-            exact,
-            pixels,
-            index,
-            &want,
-            signatures,
-            (values, moments, sigs, state),
-        );
-        stats.culled_pairs += s.culled_pairs;
-        stats.unreached += s.unreached;
-        counts += c;
-        (stats, counts)
-    }
-
-    /// [`Lists::gather`] for pixels whose full query would walk.
-    fn gather_walked(
         &mut self,
         exact: &Exact,
         pixels: &[[i32; 2]],
@@ -297,8 +251,9 @@ impl Lists {
         // as anchors anyway) add to its list what a pixel sees through a gap
         // that none of the corners sees through: measured, wall noise at
         // 10 % came from 1.13 % to 0.32 % against `reference` (0.26 % with a
-        // full query at every pixel).
-        for gr in &mut groups {
+        // full query at every pixel). (`draft` goes without: 10 % more
+        // time on its real maps.)
+        for gr in groups.iter_mut().filter(|_| self.ring) {
             let Some(&p0) = gr.pixels.first() else {
                 continue;
             };
@@ -634,7 +589,7 @@ pub(super) fn gather_all(exact: &Exact, pixels: &[[i32; 2]], spacing: i32) -> su
                 .map(|i| i as usize)
         };
         let mut state = vec![0u8; pixels.len()];
-        let (s, c) = Lists::new(spacing).gather_walked(
+        let (s, c) = Lists::new(spacing, true).gather(
             exact,
             pixels,
             &index,
