@@ -127,11 +127,11 @@ pub struct GatherOptions<'a> {
     /// smooth to within this relative tolerance ([`super::lattice`]; the
     /// flatland kernel only). `None`: gather every pixel exactly.
     pub lattice: Option<f64>,
-    /// Block sweeps ([`super::local`]; the flatland kernel only): a pixel
-    /// whose full visibility query would walk the level's blocks is swept
-    /// over what the anchor pixels this many pixels apart around it see,
-    /// where it can. `None`: a full query at every pixel (the lattice, if
-    /// any, then uses [`super::local::ANCHOR`]).
+    /// Block sweeps (docs/transport.md, Block sweeps; the flatland kernel
+    /// only): a pixel whose full visibility query would walk the level's
+    /// blocks is swept over what the anchor pixels this many pixels apart
+    /// around it see, where it can. `None`: a full query at every pixel
+    /// (the lattice, if any, then uses [`super::lattice::ANCHOR`]).
     pub anchors: Option<i32>,
     /// Also compute the first circular moments of every pixel's light
     /// (`gather/directional.rs`; the flatland kernel only). Default off.
