@@ -44,16 +44,8 @@ pub(super) fn gather(
     let (w, h) = (g.width as i32, g.height as i32);
     let k = exact.components();
     // Index of each pixel in `pixels`, by position.
-    let mut at = vec![u32::MAX; g.width * g.height];
-    for (i, p) in pixels.iter().enumerate() {
-        at[(p[1] * w + p[0]) as usize] = i as u32;
-    }
-    let index = |x: i32, y: i32| -> Option<usize> {
-        (x >= 0 && y >= 0 && x < w && y < h)
-            .then(|| at[(y * w + x) as usize])
-            .filter(|&i| i != u32::MAX)
-            .map(|i| i as usize)
-    };
+    let at = local::PixelIndex::new(g, pixels);
+    let index = |x: i32, y: i32| at.get(x, y);
     let comp = |x: i32, y: i32| g.components[(y * w + x) as usize];
     // A cell of side `step` whose every pixel is one of `pixels`, in one
     // free region.

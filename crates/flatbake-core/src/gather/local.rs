@@ -108,6 +108,32 @@ impl Near {
     }
 }
 
+/// The index of each of a list of floor pixels, by position.
+pub(super) struct PixelIndex {
+    at: Vec<u32>,
+    width: i32,
+    height: i32,
+}
+
+impl PixelIndex {
+    pub fn new(g: &Geometry, pixels: &[[i32; 2]]) -> PixelIndex {
+        let (width, height) = (g.width as i32, g.height as i32);
+        let mut at = vec![u32::MAX; g.width * g.height];
+        for (i, p) in pixels.iter().enumerate() {
+            at[(p[1] * width + p[0]) as usize] = i as u32;
+        }
+        PixelIndex { at, width, height }
+    }
+
+    /// The index of the pixel at `(x, y)`, if it is one of the list.
+    pub fn get(&self, x: i32, y: i32) -> Option<usize> {
+        (x >= 0 && y >= 0 && x < self.width && y < self.height)
+            .then(|| self.at[(y * self.width + x) as usize])
+            .filter(|&i| i != u32::MAX)
+            .map(|i| i as usize)
+    }
+}
+
 /// What the anchors see, kept for the sweeps of the pixels between them.
 pub(super) struct Lists {
     /// Per anchor gathered by a full query (by index into the pixels):
@@ -573,21 +599,12 @@ fn run_listed(
 /// blocks, by a sweep over what their block's anchors see where they can.
 pub(super) fn gather_all(exact: &Exact, pixels: &[[i32; 2]], spacing: i32) -> super::fast::Gather {
     let g = exact.geometry;
-    let (w, h) = (g.width as i32, g.height as i32);
     let (pass, want) = run_listed(exact, pixels, None);
     let (mut values, mut moments) = (pass.values, pass.moments);
     let (mut stats, mut counts) = (pass.stats, pass.counts);
     if !want.is_empty() {
-        let mut at = vec![u32::MAX; g.width * g.height];
-        for (i, p) in pixels.iter().enumerate() {
-            at[(p[1] * w + p[0]) as usize] = i as u32;
-        }
-        let index = |x: i32, y: i32| -> Option<usize> {
-            (x >= 0 && y >= 0 && x < w && y < h)
-                .then(|| at[(y * w + x) as usize])
-                .filter(|&i| i != u32::MAX)
-                .map(|i| i as usize)
-        };
+        let at = PixelIndex::new(g, pixels);
+        let index = |x: i32, y: i32| at.get(x, y);
         let mut state = vec![0u8; pixels.len()];
         let (s, c) = Lists::new(spacing, true).gather(
             exact,
