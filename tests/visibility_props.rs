@@ -408,3 +408,77 @@ fn a_box_between_a_region_and_an_edge_culls_it() {
         );
     }
 }
+
+/// With `defer`, every point is either queried (with the spans it gets
+/// without `defer`) or handed back, exactly once: in a level of a plain
+/// room beside a field of pillars behind a wall, the pillar field's points
+/// (long candidate lists) are handed back and the room's are not.
+#[test]
+fn deferring_hands_back_walking_points_and_keeps_the_rest() {
+    let (w, h) = (120, 64);
+    let rows: Vec<String> = (0..h)
+        .map(|y| {
+            (0..w)
+                .map(|x| {
+                    let pillar = x > 34 && (x % 4 == 1) && (y % 5 == 2) && (x + y) % 3 != 0;
+                    if x == 0 || y == 0 || x == w - 1 || y == h - 1 || x == 30 || pillar {
+                        '#'
+                    } else {
+                        '.'
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    let level = ascii(&refs(&rows), &[('#', wall(0.5))]);
+    let g = trace(&level);
+    let (pixels, _) = free_pixel_centres(&g, &level);
+    let spans_of = |defer: Option<&(dyn Fn(usize) + Sync)>| {
+        let got: Vec<std::sync::Mutex<Option<Vec<Span>>>> =
+            (0..pixels.len()).map(|_| Default::default()).collect();
+        flatbake_core::visibility::for_each_visibility_deferring(
+            &g,
+            None,
+            &pixels,
+            &|_| View::Full,
+            f64::INFINITY,
+            None,
+            &|_| {},
+            defer,
+            &|i, spans: &[Span]| {
+                let mut slot = got[i].lock().unwrap();
+                assert!(slot.is_none(), "point {i} visited twice");
+                *slot = Some(spans.to_vec());
+            },
+        );
+        got.into_iter()
+            .map(|m| m.into_inner().unwrap())
+            .collect::<Vec<_>>()
+    };
+    let all = spans_of(None);
+    let handed: Vec<std::sync::atomic::AtomicU32> =
+        (0..pixels.len()).map(|_| Default::default()).collect();
+    let defer = |i: usize| {
+        handed[i].fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    };
+    let some = spans_of(Some(&defer));
+    let mut deferred = 0;
+    for i in 0..pixels.len() {
+        let n = handed[i].load(std::sync::atomic::Ordering::Relaxed);
+        match &some[i] {
+            Some(spans) => {
+                assert_eq!(n, 0, "point {i} queried and handed back");
+                assert_eq!(Some(spans), all[i].as_ref(), "point {i}");
+            }
+            None => {
+                assert_eq!(n, 1, "point {i} neither queried nor handed back once");
+                deferred += 1;
+            }
+        }
+    }
+    assert!(
+        deferred > 0 && deferred < pixels.len(),
+        "{deferred} of {} points handed back",
+        pixels.len()
+    );
+}
