@@ -162,11 +162,17 @@ fn close_to_exact(quality: Quality) {
     // Interpolation is within 2 % of a cell's corners; the sweeps are exact
     // wherever the block's list holds what the pixel sees. A pixel seeing
     // through a wall would be off by a good part of the brightest light.
-    // Measured: 0.09 % and 0.3 % of the brightest light at both presets;
-    // with each block's list cut to what one corner sees, 6.2 % and 23 %.
-    assert!(rms < 0.004, "relative RMS {rms}");
+    // Measured: `normal` (the ring of anchors on each list) 0.09 % and
+    // 0.3 % of the brightest light, `draft` (the block's corners only)
+    // 0.69 % and 3.4 %; with each block's list cut to what one corner
+    // sees, 6.2 % and 23 %.
+    let (rms_max, worst_max) = match quality {
+        Quality::Draft => (0.01, 0.05),
+        _ => (0.004, 0.02),
+    };
+    assert!(rms < rms_max, "relative RMS {rms}");
     assert!(
-        worst.0 < 0.02,
+        worst.0 < worst_max,
         "pixel {} off by {} of the brightest light",
         worst.1,
         worst.0
