@@ -179,14 +179,20 @@ fn run(
                 );
             }
             if counts.local > 0 {
+                let lattice = options.lattice.is_some();
                 log.skip(
                     "pixels",
                     format!(
-                        "{} of {} floor pixels gathered with a sweep over the edges that the anchors at the corners of their {} px block and around it see and the edges within {} px of it, instead of a full visibility query that would walk the level (exact for those edges; a distant edge that no anchor sees is missed)",
+                        "{} of {} floor pixels gathered with a sweep over the edges that the anchors at the corners of their {} px block{} see and the edges within {} px of it, instead of a full visibility query{} (exact for those edges; a distant edge that no anchor sees is missed)",
                         counts.local,
                         reached.len(),
                         options.anchors.unwrap_or(gather::lattice::ANCHOR),
+                        // The lattice sweeps the pixels it asks for over
+                        // the corners' lists; without it, only pixels whose
+                        // query would walk are swept, with the ring too.
+                        if lattice { "" } else { " and of the ring around it" },
                         gather::lattice::NEAR,
+                        if lattice { "" } else { " that would walk the level" },
                     ),
                 );
             }

@@ -3,8 +3,10 @@
 //! one only if it is an anchor (both coordinates multiples of the spacing,
 //! [`ANCHOR`] by default); another is swept over a list: the edges that the
 //! anchors at the corners of its block and of the ring around it see, and
-//! every edge near the block. Pixels whose query would sweep their tile's
-//! short list are gathered so, exactly.
+//! every edge near the block. At `normal` ([`gather_all`]) the pixels
+//! whose query would sweep their tile's short list are gathered so,
+//! exactly; `draft`'s lattice sends every pixel it gathers, and its lists
+//! hold the block's corners only.
 //!
 //! A full query walks the level's blocks of edges from near to far until
 //! nearer surfaces hide the rest; most of its time goes into proving blocks
