@@ -436,7 +436,7 @@ fn deferring_hands_back_walking_points_and_keeps_the_rest() {
     let spans_of = |defer: Option<&(dyn Fn(usize) + Sync)>| {
         let got: Vec<std::sync::Mutex<Option<Vec<Span>>>> =
             (0..pixels.len()).map(|_| Default::default()).collect();
-        flatbake_core::visibility::for_each_visibility_deferring(
+        flatbake_core::visibility::for_each_visibility_counted(
             &g,
             None,
             &pixels,

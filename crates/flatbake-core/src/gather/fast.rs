@@ -9,7 +9,7 @@ use crate::transport::kernel::Reach;
 use crate::transport::kernel::{Falloff, GatherLine, GatherPoints};
 use crate::transport::{Patches, wanted_reach};
 use crate::visibility::marks::Marks;
-use crate::visibility::{Span, TileTree, View, VisitStats, centre, for_each_visibility_deferring};
+use crate::visibility::{Span, TileTree, View, VisitStats, centre, for_each_visibility_counted};
 
 use super::patch_tree::node_range;
 use super::*;
@@ -621,7 +621,7 @@ impl Exact<'_> {
 
     /// [`Exact::run`]; with `defer`, a pixel whose query would walk the
     /// level's blocks is passed to it instead and its values are left 0
-    /// ([`crate::visibility::for_each_visibility_deferring`]).
+    /// ([`crate::visibility::for_each_visibility_counted`]).
     pub fn run_deferring(
         &self,
         pixels: &[[i32; 2]],
@@ -648,7 +648,7 @@ impl Exact<'_> {
         // shared by every pixel costs more than the pixel's own bookkeeping,
         // and a pair per pixel is 8 bytes of the gather's peak).
         let merged = PerThread::<2>::new();
-        let stats = for_each_visibility_deferring(
+        let stats = for_each_visibility_counted(
             self.geometry,
             None,
             pixels,

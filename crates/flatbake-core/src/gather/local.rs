@@ -526,6 +526,7 @@ fn run_recording(
             exact.reach_max,
             None,
             &|_| {},
+            None,
             &|i, spans| {
                 let at = centre(pixels[i]);
                 let mut edges: Vec<u32> = spans.iter().map(|s| s.edge).collect();
@@ -577,31 +578,21 @@ fn run_recording(
     (pass, seen, dropped)
 }
 
-/// [`Exact::run`] for `pixels`, leaving out (values 0) those whose full
-/// query would walk the level's blocks: returned, sorted.
-fn run_listed(
-    exact: &Exact,
-    pixels: &[[i32; 2]],
-    signatures: Option<f64>,
-) -> (super::fast::Pass, Vec<usize>) {
-    let deferred = std::sync::Mutex::new(Vec::new());
-    let pass = exact.run_deferring(
-        pixels,
-        signatures,
-        Some(&|j| deferred.lock().unwrap_or_else(|e| e.into_inner()).push(j)),
-    );
-    let mut deferred = deferred.into_inner().unwrap_or_else(|e| e.into_inner());
-    deferred.sort_unstable();
-    (pass, deferred)
-}
-
 /// Gathers every one of `pixels` as [`Lists::gather`] does, with anchors
 /// `spacing` px apart: the pixels whose full query would sweep a short
 /// list of their tile exactly, the others, which would walk the level's
 /// blocks, by a sweep over what their block's anchors see where they can.
 pub(super) fn gather_all(exact: &Exact, pixels: &[[i32; 2]], spacing: i32) -> super::fast::Gather {
     let g = exact.geometry;
-    let (pass, want) = run_listed(exact, pixels, None);
+    // The pixels whose query would walk, handed back by the exact pass.
+    let walks = std::sync::Mutex::new(Vec::new());
+    let pass = exact.run_deferring(
+        pixels,
+        None,
+        Some(&|i| walks.lock().unwrap_or_else(|e| e.into_inner()).push(i)),
+    );
+    let mut want = walks.into_inner().unwrap_or_else(|e| e.into_inner());
+    want.sort_unstable();
     let (mut values, mut moments) = (pass.values, pass.moments);
     let (mut stats, mut counts) = (pass.stats, pass.counts);
     if !want.is_empty() {

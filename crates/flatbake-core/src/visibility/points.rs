@@ -122,6 +122,7 @@ where
         reach_max,
         reach2,
         &|_| {},
+        None,
         f,
     )
 }
@@ -134,30 +135,12 @@ pub fn centre(px: [i32; 2]) -> [f64; 2] {
 /// [`for_each_visibility`], calling `done(n)` after each leaf tile with the
 /// number of points it held, for progress reports. Without `pos` the points
 /// are the pixels' [`centre`]s, not stored per point (a floor gather's
-/// millions of pixels).
+/// millions of pixels). With `defer`, a point that would walk the level's
+/// blocks (no short candidate list in its leaf tile, or a long list that
+/// culling left almost whole) is passed to `defer` instead of queried: `f`
+/// is not called for it and `done` does not count it.
 #[allow(clippy::too_many_arguments)]
 pub fn for_each_visibility_counted<F>(
-    geometry: &Geometry,
-    pos: Option<&[[f64; 2]]>,
-    pixel: &[[i32; 2]],
-    view: &(dyn Fn(usize) -> View + Sync),
-    reach_max: f64,
-    reach2: Option<&[f64]>,
-    done: &(dyn Fn(usize) + Sync),
-    f: &F,
-) -> VisitStats
-where
-    F: Fn(usize, &[Span]) + Sync,
-{
-    for_each_visibility_deferring(geometry, pos, pixel, view, reach_max, reach2, done, None, f)
-}
-
-/// [`for_each_visibility_counted`]; with `defer`, a point that would walk
-/// the level's blocks (no short candidate list in its leaf tile, or a long
-/// list that culling left almost whole) is passed to `defer` instead of
-/// queried, `f` is not called for it and `done` does not count it.
-#[allow(clippy::too_many_arguments)]
-pub fn for_each_visibility_deferring<F>(
     geometry: &Geometry,
     pos: Option<&[[f64; 2]]>,
     pixel: &[[i32; 2]],
