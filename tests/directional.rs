@@ -1013,6 +1013,7 @@ fn curved_reflected_light_matches_a_quadrature_of_the_patches() {
             progress: None,
             lattice: None,
             anchors: None,
+            sweep_every: false,
             directional: true,
         };
         let got = gather_with_moments(&g, &patches, &rad, &pixels, &options);

@@ -221,15 +221,19 @@ fn relight_equals_a_fresh_bake_with_the_new_emission() {
     let new_dark = [0.0, 2.0, 2.0];
     for falloff in [None, Some(12.0)] {
         let level = resolved(&palette_text(LAMP_E, TORCH_E, [0.0; 3], falloff));
-        let baked = bake::bake(&level, &settings(falloff), &|_| {}).expect("bakes");
-        let r = baked.responses.expect("responses");
-        let relit = r.combine(&[new_lamp, TORCH_E, new_dark]);
-
         let fresh_level = resolved(&palette_text(new_lamp, TORCH_E, new_dark, falloff));
-        let mut s = settings(falloff);
+        // Against a bake without responses, with the lattice off: a bake
+        // decides where to interpolate from its own light, the unit
+        // responses of a cache or its palette's emission (compared below).
+        let mut exact_pixels = settings(falloff);
+        exact_pixels.knobs.lattice = None;
+        let baked = bake::bake(&level, &exact_pixels, &|_| {}).expect("bakes");
+        let r = baked.responses.expect("responses");
+        let relit_exact_pixels = r.combine(&[new_lamp, TORCH_E, new_dark]);
+        let mut s = exact_pixels;
         s.responses = false;
         let fresh = bake::bake(&fresh_level, &s, &|_| {}).expect("bakes");
-        let (d, m) = max_diff(&fresh.lightmap.rgb, &relit);
+        let (d, m) = max_diff(&fresh.lightmap.rgb, &relit_exact_pixels);
         // Without falloff nothing is culled: equal up to the solver
         // tolerance. With falloff each bake culls pairs whose light is below
         // reach_bound x its brightest emission; the two bakes cull different
@@ -249,8 +253,12 @@ fn relight_equals_a_fresh_bake_with_the_new_emission() {
             "falloff {falloff:?}: relit differs by {d} (tol {tol}, max {m})"
         );
         // A relight is exactly what a layered bake with the new emission
-        // writes: both are sums of per-emitter light, and with falloff both
-        // cull the same pairs (chosen for unit emission, whatever the palette).
+        // writes: both are sums of per-emitter light, with falloff both
+        // cull the same pairs, and both interpolate the same pixels (chosen
+        // for unit emission, whatever the palette).
+        let baked = bake::bake(&level, &settings(falloff), &|_| {}).expect("bakes");
+        let r = baked.responses.expect("responses");
+        let relit = r.combine(&[new_lamp, TORCH_E, new_dark]);
         let layered = bake::bake(&fresh_level, &settings(falloff), &|_| {}).expect("bakes");
         let (dl, _) = max_diff(&layered.lightmap.rgb, &relit);
         let tol_layered = 1e-5 * m;
@@ -258,6 +266,21 @@ fn relight_equals_a_fresh_bake_with_the_new_emission() {
         assert!(
             dl <= tol_layered,
             "relit differs from a layered bake by {dl}"
+        );
+        // A bake without responses interpolates where its own light says
+        // so: within the lattice's tolerance of the relight.
+        let mut s = settings(falloff);
+        s.responses = false;
+        let plain = bake::bake(&fresh_level, &s, &|_| {}).expect("bakes");
+        let (dp, _) = max_diff(&plain.lightmap.rgb, &relit);
+        let lattice = Quality::Normal
+            .knobs()
+            .lattice
+            .expect("normal interpolates");
+        eprintln!("relight vs plain bake, falloff {falloff:?}: max error {dp:e}");
+        assert!(
+            dp <= tol + lattice * m,
+            "relit differs from a plain bake by {dp}"
         );
         // And it is not simply the old lightmap.
         assert!(max_diff(&baked.lightmap.rgb, &relit).0 > 0.05 * m);
@@ -319,7 +342,17 @@ fn relight_command_equals_bake_command() {
         &palette_text(LAMP_E, [1.0, 5.0, 9.0], [2.0; 3], None),
     );
     let fresh = fresh_dir.path().join("out");
-    let o = flatbake(&["bake", s(&png2), "-o", s(&fresh), "--hdr", "--quiet"]);
+    // (With `--layers`, as the cache was: both then interpolate the same
+    // pixels, chosen for unit emission.)
+    let o = flatbake(&[
+        "bake",
+        s(&png2),
+        "-o",
+        s(&fresh),
+        "--hdr",
+        "--layers",
+        "--quiet",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let (_, _, a) = read_lightmap_exr(&fresh.join("room.lightmap.exr")).expect("fresh exr");
     let (_, _, b) = read_lightmap_exr(&relit.join("room.lightmap.exr")).expect("relit exr");

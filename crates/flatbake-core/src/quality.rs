@@ -1,7 +1,10 @@
 //! Quality presets: how much accuracy a bake pays for.
 //!
-//! Every preset computes direct light exactly (closed-form visible angles);
-//! the presets differ only in how finely the reflected light is resolved.
+//! Every preset computes direct light exactly (closed-form visible angles)
+//! at the pixels it gathers; the presets differ in how finely the
+//! reflected light is resolved, and `draft` and `normal` also in which
+//! pixels they gather (interpolating where the light is smooth) and over
+//! which edges (block sweeps): see docs/transport.md, Quality knobs.
 
 use serde::{Deserialize, Serialize};
 
@@ -51,10 +54,20 @@ pub struct Knobs {
     /// lattice's pixels too). `None`: a full query at every pixel.
     #[serde(default)]
     pub anchors: Option<i32>,
+    /// Which pixels block sweeps take: `true` (`draft`), every pixel the
+    /// gather asks for that is not an anchor, over the lists of its block's
+    /// corners; `false`, only the pixels whose full query would walk the
+    /// level, over the lists of the block's corners and of the ring of
+    /// anchors around it ([`crate::gather::GatherOptions::sweep_every`]).
+    #[serde(default)]
+    pub sweep_every: bool,
 }
 
 /// The lattice tolerance of `draft` (see [`Knobs::lattice`]).
 pub const DRAFT_LATTICE: f64 = 0.02;
+
+/// The lattice tolerance of `normal` (see [`Knobs::lattice`]).
+pub const NORMAL_LATTICE: f64 = 0.01;
 
 impl Quality {
     /// Every preset, cheapest first.
@@ -76,6 +89,7 @@ impl Quality {
                 reach_bound: 1e-4,
                 lattice: Some(DRAFT_LATTICE),
                 anchors: Some(crate::gather::lattice::ANCHOR),
+                sweep_every: true,
             },
             Quality::Normal => Knobs {
                 patch_len: 4.0,
@@ -83,8 +97,9 @@ impl Quality {
                 quad: 3,
                 tolerance: 1e-6,
                 reach_bound: 1e-5,
-                lattice: None,
+                lattice: Some(NORMAL_LATTICE),
                 anchors: Some(crate::gather::lattice::ANCHOR),
+                sweep_every: false,
             },
             Quality::High => Knobs {
                 patch_len: 2.0,
@@ -94,6 +109,7 @@ impl Quality {
                 reach_bound: 1e-6,
                 lattice: None,
                 anchors: None,
+                sweep_every: false,
             },
             Quality::Reference => Knobs {
                 patch_len: 0.5,
@@ -103,6 +119,7 @@ impl Quality {
                 reach_bound: 0.0,
                 lattice: None,
                 anchors: None,
+                sweep_every: false,
             },
         }
     }

@@ -159,6 +159,7 @@ fn run(
                 progress: ctx.gather_progress.map(gather::OnProgress),
                 lattice: settings.knobs.lattice.filter(|_| !settings.exhaustive),
                 anchors: settings.knobs.anchors.filter(|_| !settings.exhaustive),
+                sweep_every: settings.knobs.sweep_every,
                 directional: settings.directional,
             };
             let gather::Gather {
@@ -179,7 +180,7 @@ fn run(
                 );
             }
             if counts.local > 0 {
-                let lattice = options.lattice.is_some();
+                let every = options.sweep_every;
                 log.skip(
                     "pixels",
                     format!(
@@ -187,12 +188,12 @@ fn run(
                         counts.local,
                         reached.len(),
                         options.anchors.unwrap_or(gather::lattice::ANCHOR),
-                        // The lattice sweeps the pixels it asks for over
-                        // the corners' lists; without it, only pixels whose
-                        // query would walk are swept, with the ring too.
-                        if lattice { "" } else { " and of the ring around it" },
+                        // `draft` sweeps every pixel it gathers over the
+                        // corners' lists; otherwise only pixels whose query
+                        // would walk are swept, with the ring too.
+                        if every { "" } else { " and of the ring around it" },
                         gather::lattice::NEAR,
-                        if lattice { "" } else { " that would walk the level" },
+                        if every { "" } else { " that would walk the level" },
                     ),
                 );
             }

@@ -133,6 +133,11 @@ pub struct GatherOptions<'a> {
     /// around it see, where it can. `None`: a full query at every pixel
     /// (the lattice, if any, then uses [`super::lattice::ANCHOR`]).
     pub anchors: Option<i32>,
+    /// Which pixels block sweeps take: every pixel the gather (the
+    /// lattice) asks for that is not an anchor, over its block's corners'
+    /// lists (`draft`); or only those whose full query would walk, over the
+    /// lists of the corners and of the ring of anchors around them.
+    pub sweep_every: bool,
     /// Also compute the first circular moments of every pixel's light
     /// (`gather/directional.rs`; the flatland kernel only). Default off.
     pub directional: bool,
@@ -528,6 +533,7 @@ pub fn gather_with_moments(
         progress,
         lattice,
         anchors,
+        sweep_every,
         directional,
     } = *options;
     let tree = PatchTree::new(
@@ -560,7 +566,7 @@ pub fn gather_with_moments(
     match lattice {
         Some(relative) if kernel == Kernel::Flatland => {
             let spacing = anchors.unwrap_or(super::local::ANCHOR);
-            super::lattice::gather(&exact, pixels, relative, tolerance, spacing)
+            super::lattice::gather(&exact, pixels, relative, tolerance, spacing, sweep_every)
         }
         None if kernel == Kernel::Flatland && anchors.is_some() => {
             super::local::gather_all(&exact, pixels, anchors.unwrap_or(super::local::ANCHOR))

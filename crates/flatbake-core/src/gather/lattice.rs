@@ -1,6 +1,6 @@
-//! The interpolated gather (`draft`): light gathered exactly on a lattice
-//! of every eighth pixel, and in between only where the lattice says it is
-//! needed (docs/transport.md#interpolated-gather).
+//! The interpolated gather (`draft` and `normal`): light gathered exactly
+//! on a lattice of every eighth pixel, and in between only where the
+//! lattice says it is needed (docs/transport.md#interpolated-gather).
 //!
 //! Floor light is smooth except across the shadow lines of walls and near
 //! lit edges. A cell of the lattice (8 x 8 pixels between four lattice
@@ -8,8 +8,9 @@
 //! corners, its centre and the middles of its sides. Where each of those
 //! probes' exact light is within the tolerance of the mean of the corners
 //! it lies between, and all nine have the same
-//! signature (the same lights, cut by the same shadow lines: no hard shadow
-//! edge of direct light between them), the cell's other pixels are interpolated
+//! signature (the same lights that add at least [`SHADOWS`] times the
+//! tolerance, cut by the same shadow lines: no hard shadow
+//! edge of their direct light between them), the cell's other pixels are interpolated
 //! bilinearly from the corners. Every other cell is split into four cells
 //! of 4 x 4 pixels, tested the same way, and those that fail are gathered
 //! pixel by pixel. So a smooth open floor costs two exact pixels in 64, and a level
@@ -29,16 +30,28 @@ pub use super::local::{ANCHOR, NEAR};
 /// pixel by pixel.
 pub const STEPS: [i32; 2] = [8, 4];
 
+/// The share of a pixel's light, as a multiple of the lattice tolerance,
+/// below which a light's shadow lines do not stop a cell from being
+/// interpolated ([`super::fast::signature`]): a hard shadow line of a light
+/// that adds more than twice the tolerance across it already fails the
+/// probes' test where it passes between them, so the signature only has to
+/// catch the shadow lines of brighter lights that slip past the probes
+/// (where the light's other changes across the cell cancel the jump).
+pub const SHADOWS: f64 = 5.0;
+
 /// Gathers `pixels` through the lattice: see the module docs. A cell is
 /// interpolated when, in every component, each probe's light differs from
 /// the mean of the corners it lies between by at most `relative` of the
-/// larger of the two plus `absolute`.
+/// larger of the two plus `absolute`. The pixels it gathers go through
+/// the block sweeps ([`local::Lists`]): every one (`sweep_every`, `draft`),
+/// or those whose full query would walk the level.
 pub(super) fn gather(
     exact: &Exact,
     pixels: &[[i32; 2]],
     relative: f64,
     absolute: f64,
     spacing: i32,
+    sweep_every: bool,
 ) -> Gather {
     let g = exact.geometry;
     let (w, h) = (g.width as i32, g.height as i32);
@@ -66,8 +79,17 @@ pub(super) fn gather(
     let mut exact_too = vec![false; pixels.len()];
     let mut stats = VisitStats::default();
     let mut counts = GatherCounts::default();
-    // What the anchors see, for the sweeps of the pixels between them.
-    let mut lists = local::Lists::new(spacing, false);
+    // What the anchors see, for the sweeps of the pixels between them; and
+    // how the pixels asked for are gathered: every one through the lists,
+    // or only those whose full query would walk the level.
+    let mut lists = local::Lists::new(spacing, !sweep_every);
+    let take = |lists: &mut local::Lists, want: &[usize], sigs: Option<f64>, out: local::Out| {
+        if sweep_every {
+            lists.gather(exact, pixels, &index, want, sigs, out)
+        } else {
+            lists.gather_walking(exact, pixels, &index, want, sigs, out)
+        }
+    };
     // Top-left corners of the cells that passed at the previous spacing.
     let mut passed: std::collections::HashSet<[i32; 2]> = Default::default();
     for (level, &step) in STEPS.iter().enumerate() {
@@ -95,12 +117,10 @@ pub(super) fn gather(
                 }
             }
         }
-        let (s, c) = lists.gather(
-            exact,
-            pixels,
-            &index,
+        let (s, c) = take(
+            &mut lists,
             &want,
-            Some(relative),
+            Some(SHADOWS * relative),
             (&mut values, &mut moments, &mut signature, &mut state),
         );
         stats.culled_pairs += s.culled_pairs;
@@ -172,21 +192,21 @@ pub(super) fn gather(
         .filter(|&i| state[i] == 2 && !exact_too[i])
         .count();
     exact.done(interpolated);
-    let (s, c) = lists.gather(
-        exact,
-        pixels,
-        &index,
+    // (The last pass asks for no signatures: their memory goes first.)
+    drop((signature, exact_too, passed));
+    let (s, c) = take(
+        &mut lists,
         &rest,
         None,
-        (&mut values, &mut moments, &mut signature, &mut state),
+        (&mut values, &mut moments, &mut [], &mut state),
     );
+    drop(rest);
     stats.culled_pairs += s.culled_pairs;
     stats.unreached += s.unreached;
     counts += c;
-    // (Less the anchors that the last pass gathered exactly.)
-    counts.interpolated = (0..pixels.len())
-        .filter(|&i| state[i] == 2 && !exact_too[i])
-        .count() as u64;
+    // Every pixel of `rest` is gathered now; less the anchors that the last
+    // pass gathered exactly too.
+    counts.interpolated = state.iter().filter(|&&s| s == 2).count() as u64;
     Gather {
         values,
         moments,

@@ -3,10 +3,10 @@
 //! one only if it is an anchor (both coordinates multiples of the spacing,
 //! [`ANCHOR`] by default); another is swept over a list: the edges that the
 //! anchors at the corners of its block and of the ring around it see, and
-//! every edge near the block. At `normal` ([`gather_all`]) the pixels
-//! whose query would sweep their tile's short list are gathered so,
-//! exactly; `draft`'s lattice sends every pixel it gathers, and its lists
-//! hold the block's corners only.
+//! every edge near the block. At `normal` ([`Lists::gather_walking`]) the
+//! pixels whose query would sweep their tile's short list are gathered so,
+//! exactly; `draft`'s lattice sends every pixel it gathers
+//! ([`Lists::gather`]), and its lists hold the block's corners only.
 //!
 //! A full query walks the level's blocks of edges from near to far until
 //! nearer surfaces hide the rest; most of its time goes into proving blocks
@@ -355,6 +355,60 @@ impl Lists {
         (stats, counts)
     }
 
+    /// Gathers the pixels `want` as `normal` does: a full query each,
+    /// except the pixels whose query would walk the level's blocks, which
+    /// the exact pass hands back to [`Lists::gather`].
+    pub fn gather_walking(
+        &mut self,
+        exact: &Exact,
+        pixels: &[[i32; 2]],
+        index: &dyn Fn(i32, i32) -> Option<usize>,
+        want: &[usize],
+        signatures: Option<f64>,
+        (values, moments, sigs, state): Out,
+    ) -> (VisitStats, GatherCounts) {
+        let k = exact.components();
+        let km = if exact.directional { 2 * k } else { 0 };
+        let pts: Vec<[i32; 2]> = want.iter().map(|&i| pixels[i]).collect();
+        let walks = std::sync::Mutex::new(Vec::new());
+        let pass = exact.run_deferring(
+            &pts,
+            signatures,
+            Some(&|j| walks.lock().unwrap_or_else(|e| e.into_inner()).push(j)),
+        );
+        let walks = walks.into_inner().unwrap_or_else(|e| e.into_inner());
+        let mut handed_back = vec![false; want.len()];
+        for &j in &walks {
+            handed_back[j] = true;
+        }
+        for (j, &i) in want.iter().enumerate().filter(|&(j, _)| !handed_back[j]) {
+            values[i * k..(i + 1) * k].copy_from_slice(&pass.values[j * k..(j + 1) * k]);
+            moments[i * km..(i + 1) * km].copy_from_slice(&pass.moments[j * km..(j + 1) * km]);
+            if signatures.is_some() {
+                sigs[i] = pass.signature[j];
+            }
+            state[i] = 1;
+        }
+        let (mut stats, mut counts) = (pass.stats, pass.counts);
+        drop(pass);
+        if !walks.is_empty() {
+            let mut rest: Vec<usize> = walks.iter().map(|&j| want[j]).collect();
+            rest.sort_unstable();
+            let (s, c) = self.gather(
+                exact,
+                pixels,
+                index,
+                &rest,
+                signatures,
+                (values, moments, sigs, state),
+            );
+            stats.culled_pairs += s.culled_pairs;
+            stats.unreached += s.unreached;
+            counts += c;
+        }
+        (stats, counts)
+    }
+
     /// The sweeps of the groups' pixels: values, moments (with
     /// [`Exact::directional`]) and signatures in the order of the groups and
     /// their pixels, and what they merged and left out.
@@ -578,39 +632,24 @@ fn run_recording(
     (pass, seen, dropped)
 }
 
-/// Gathers every one of `pixels` as [`Lists::gather`] does, with anchors
-/// `spacing` px apart: the pixels whose full query would sweep a short
-/// list of their tile exactly, the others, which would walk the level's
-/// blocks, by a sweep over what their block's anchors see where they can.
+/// Gathers every one of `pixels` as [`Lists::gather_walking`] does, with
+/// anchors `spacing` px apart.
 pub(super) fn gather_all(exact: &Exact, pixels: &[[i32; 2]], spacing: i32) -> super::fast::Gather {
-    let g = exact.geometry;
-    // The pixels whose query would walk, handed back by the exact pass.
-    let walks = std::sync::Mutex::new(Vec::new());
-    let pass = exact.run_deferring(
+    let k = exact.components();
+    let km = if exact.directional { 2 * k } else { 0 };
+    let at = PixelIndex::new(exact.geometry, pixels);
+    let index = |x: i32, y: i32| at.get(x, y);
+    let (mut values, mut moments) = (vec![0.0; pixels.len() * k], vec![0.0; pixels.len() * km]);
+    let mut state = vec![0u8; pixels.len()];
+    let all: Vec<usize> = (0..pixels.len()).collect();
+    let (stats, counts) = Lists::new(spacing, true).gather_walking(
+        exact,
         pixels,
+        &index,
+        &all,
         None,
-        Some(&|i| walks.lock().unwrap_or_else(|e| e.into_inner()).push(i)),
+        (&mut values, &mut moments, &mut [], &mut state),
     );
-    let mut want = walks.into_inner().unwrap_or_else(|e| e.into_inner());
-    want.sort_unstable();
-    let (mut values, mut moments) = (pass.values, pass.moments);
-    let (mut stats, mut counts) = (pass.stats, pass.counts);
-    if !want.is_empty() {
-        let at = PixelIndex::new(g, pixels);
-        let index = |x: i32, y: i32| at.get(x, y);
-        let mut state = vec![0u8; pixels.len()];
-        let (s, c) = Lists::new(spacing, true).gather(
-            exact,
-            pixels,
-            &index,
-            &want,
-            None,
-            (&mut values, &mut moments, &mut [], &mut state),
-        );
-        stats.culled_pairs += s.culled_pairs;
-        stats.unreached += s.unreached;
-        counts += c;
-    }
     super::fast::Gather {
         values,
         moments,
