@@ -66,6 +66,18 @@ pub(super) fn gather(
         let c = comp(x0, y0);
         (y0..=y0 + step).all(|y| (x0..=x0 + step).all(|x| index(x, y).is_some() && comp(x, y) == c))
     };
+    // No cell to interpolate (a level of one-pixel walls): `normal` gathers
+    // as it would without the lattice, and without its arrays.
+    let fine = STEPS[STEPS.len() - 1];
+    let no_cell = !(0..h - fine).step_by(fine as usize).any(|y0| {
+        (0..w - fine)
+            .step_by(fine as usize)
+            .any(|x0| whole(fine, x0, y0))
+    });
+    if no_cell && !sweep_every {
+        drop(at);
+        return local::gather_all(exact, pixels, spacing);
+    }
     let mut values = vec![0.0; pixels.len() * k];
     // The moments, if asked for, follow the light: copied where it is
     // gathered, interpolated with its weights where it is interpolated.

@@ -33,6 +33,9 @@ use super::{Disjoint, PerThread};
 /// Spacing of the anchor pixels, in pixels, unless the preset sets it.
 pub const ANCHOR: i32 = 4;
 
+/// Pixels per exact pass of [`Lists::gather_walking`].
+const CHUNK: usize = 1 << 18;
+
 /// Edges that come within this many pixels of a block's pixels are on the
 /// block's list whatever its anchors see.
 pub const NEAR: i32 = 2;
@@ -57,7 +60,8 @@ thread_local! {
 
 /// The edges near each block of `ANCHOR` x `ANCHOR` pixels (those whose
 /// bounding box comes within [`NEAR`] of the block's pixels and of the
-/// anchors on its far sides).
+/// anchors on its far sides), kept for the blocks a pass sweeps only (a
+/// level of millions of one-pixel edges would hold them for every block).
 struct Near {
     nx: usize,
     start: Vec<u32>,
@@ -65,9 +69,13 @@ struct Near {
 }
 
 impl Near {
-    fn new(g: &Geometry, s: i32) -> Near {
+    fn new(g: &Geometry, s: i32, groups: &[Group]) -> Near {
         let nx = (g.width as i32 / s + 1) as usize;
         let ny = (g.height as i32 / s + 1) as usize;
+        let mut used = vec![false; nx * ny];
+        for gr in groups {
+            used[gr.block[1] as usize * nx + gr.block[0] as usize] = true;
+        }
         // Block (bx, by) holds the pixels from s * bx to s * bx + s (the far
         // anchors included), so the area [s bx - NEAR, s bx + s + 1 + NEAR].
         let range = |lo: i32, hi: i32, n: usize| {
@@ -82,7 +90,10 @@ impl Near {
                 let (y0, y1) = (e.a[1].min(e.b[1]), e.a[1].max(e.b[1]));
                 for by in range(y0, y1, ny) {
                     for bx in range(x0, x1, nx) {
-                        f(by as usize * nx + bx as usize, ei as u32);
+                        let b = by as usize * nx + bx as usize;
+                        if used[b] {
+                            f(b, ei as u32);
+                        }
                     }
                 }
             }
@@ -141,8 +152,6 @@ pub(super) struct Lists {
     /// Per anchor gathered by a full query (by index into the pixels):
     /// every edge it sees, lit or not, sorted.
     seen: std::collections::HashMap<usize, Vec<u32>>,
-    /// Built when a first block is swept.
-    near: Option<Near>,
     /// Spacing of the anchors, in pixels.
     spacing: i32,
     /// Also the anchors of the ring around a block ([`Lists::new`]).
@@ -171,7 +180,6 @@ impl Lists {
             spacing,
             ring,
             seen: Default::default(),
-            near: None,
         }
     }
 
@@ -338,10 +346,9 @@ impl Lists {
             let [x0, y0] = gr.origin;
             (y0 / 8, x0 / 8, y0, x0)
         });
-        if !groups.is_empty() && self.near.is_none() {
-            self.near = Some(Near::new(g, self.spacing));
-        }
-        let (sv, smo, ss, sm) = self.sweep(exact, pixels, &groups, signatures);
+        let near = (!groups.is_empty()).then(|| Near::new(g, self.spacing, &groups));
+        let (sv, smo, ss, sm) = self.sweep(exact, pixels, &groups, near.as_ref(), signatures);
+        drop(near);
         for (j, i) in groups.iter().flat_map(|gr| gr.pixels.iter()).enumerate() {
             values[i * k..(i + 1) * k].copy_from_slice(&sv[j * k..(j + 1) * k]);
             moments[i * km..(i + 1) * km].copy_from_slice(&smo[j * km..(j + 1) * km]);
@@ -369,30 +376,32 @@ impl Lists {
     ) -> (VisitStats, GatherCounts) {
         let k = exact.components();
         let km = if exact.directional { 2 * k } else { 0 };
-        let pts: Vec<[i32; 2]> = want.iter().map(|&i| pixels[i]).collect();
-        let walks = std::sync::Mutex::new(Vec::new());
-        let pass = exact.run_deferring(
-            &pts,
-            signatures,
-            Some(&|j| walks.lock().unwrap_or_else(|e| e.into_inner()).push(j)),
-        );
-        let walks = walks.into_inner().unwrap_or_else(|e| e.into_inner());
-        let mut handed_back = vec![false; want.len()];
-        for &j in &walks {
-            handed_back[j] = true;
-        }
-        for (j, &i) in want.iter().enumerate().filter(|&(j, _)| !handed_back[j]) {
-            values[i * k..(i + 1) * k].copy_from_slice(&pass.values[j * k..(j + 1) * k]);
-            moments[i * km..(i + 1) * km].copy_from_slice(&pass.moments[j * km..(j + 1) * km]);
-            if signatures.is_some() {
-                sigs[i] = pass.signature[j];
+        let (mut stats, mut counts) = (VisitStats::default(), GatherCounts::default());
+        let mut rest = Vec::new();
+        // In chunks of pixels (in the order asked for, rows of tiles): the
+        // exact pass's own arrays stay small beside the caller's.
+        for want in want.chunks(CHUNK) {
+            let pts: Vec<[i32; 2]> = want.iter().map(|&i| pixels[i]).collect();
+            let (pass, walks) = exact_or_walks(exact, &pts, signatures);
+            drop(pts);
+            let mut handed_back = vec![false; want.len()];
+            for &j in &walks {
+                handed_back[j] = true;
+                rest.push(want[j]);
             }
-            state[i] = 1;
+            for (j, &i) in want.iter().enumerate().filter(|&(j, _)| !handed_back[j]) {
+                values[i * k..(i + 1) * k].copy_from_slice(&pass.values[j * k..(j + 1) * k]);
+                moments[i * km..(i + 1) * km].copy_from_slice(&pass.moments[j * km..(j + 1) * km]);
+                if signatures.is_some() {
+                    sigs[i] = pass.signature[j];
+                }
+                state[i] = 1;
+            }
+            stats.culled_pairs += pass.stats.culled_pairs;
+            stats.unreached += pass.stats.unreached;
+            counts += pass.counts;
         }
-        let (mut stats, mut counts) = (pass.stats, pass.counts);
-        drop(pass);
-        if !walks.is_empty() {
-            let mut rest: Vec<usize> = walks.iter().map(|&j| want[j]).collect();
+        if !rest.is_empty() {
             rest.sort_unstable();
             let (s, c) = self.gather(
                 exact,
@@ -417,6 +426,7 @@ impl Lists {
         exact: &Exact,
         pixels: &[[i32; 2]],
         groups: &[Group],
+        near: Option<&Near>,
         signatures: Option<f64>,
     ) -> (Vec<f64>, Vec<f64>, Vec<u64>, (GatherCounts, u64)) {
         let (light, g) = (exact.light, exact.geometry);
@@ -450,7 +460,7 @@ impl Lists {
                         b.stamp.iter_mut().for_each(|s| *s = 0);
                         b.generation = 1;
                     }
-                    let near = self.near.as_ref().map(|n| n.of(gr.block[0], gr.block[1]));
+                    let near = near.map(|n| n.of(gr.block[0], gr.block[1]));
                     for part in gr
                         .anchors
                         .iter()
@@ -633,27 +643,48 @@ fn run_recording(
 }
 
 /// Gathers every one of `pixels` as [`Lists::gather_walking`] does, with
-/// anchors `spacing` px apart.
+/// anchors `spacing` px apart (and no copy of the exact pass's values).
 pub(super) fn gather_all(exact: &Exact, pixels: &[[i32; 2]], spacing: i32) -> super::fast::Gather {
-    let k = exact.components();
-    let km = if exact.directional { 2 * k } else { 0 };
-    let at = PixelIndex::new(exact.geometry, pixels);
-    let index = |x: i32, y: i32| at.get(x, y);
-    let (mut values, mut moments) = (vec![0.0; pixels.len() * k], vec![0.0; pixels.len() * km]);
-    let mut state = vec![0u8; pixels.len()];
-    let all: Vec<usize> = (0..pixels.len()).collect();
-    let (stats, counts) = Lists::new(spacing, true).gather_walking(
-        exact,
-        pixels,
-        &index,
-        &all,
-        None,
-        (&mut values, &mut moments, &mut [], &mut state),
-    );
+    let (pass, mut walks) = exact_or_walks(exact, pixels, None);
+    let (mut values, mut moments) = (pass.values, pass.moments);
+    let (mut stats, mut counts) = (pass.stats, pass.counts);
+    if !walks.is_empty() {
+        walks.sort_unstable();
+        let at = PixelIndex::new(exact.geometry, pixels);
+        let index = |x: i32, y: i32| at.get(x, y);
+        let mut state = vec![0u8; pixels.len()];
+        let (s, c) = Lists::new(spacing, true).gather(
+            exact,
+            pixels,
+            &index,
+            &walks,
+            None,
+            (&mut values, &mut moments, &mut [], &mut state),
+        );
+        stats.culled_pairs += s.culled_pairs;
+        stats.unreached += s.unreached;
+        counts += c;
+    }
     super::fast::Gather {
         values,
         moments,
         stats,
         counts,
     }
+}
+
+/// The exact pass over `pixels`, and the indices of those it handed back
+/// because their query would walk the level's blocks (their values left 0).
+fn exact_or_walks(
+    exact: &Exact,
+    pixels: &[[i32; 2]],
+    signatures: Option<f64>,
+) -> (super::fast::Pass, Vec<usize>) {
+    let walks = std::sync::Mutex::new(Vec::new());
+    let pass = exact.run_deferring(
+        pixels,
+        signatures,
+        Some(&|i| walks.lock().unwrap_or_else(|e| e.into_inner()).push(i)),
+    );
+    (pass, walks.into_inner().unwrap_or_else(|e| e.into_inner()))
 }
