@@ -47,7 +47,7 @@ pub const MIN_PASSED: f64 = 0.25;
 
 /// The share of a pixel's light, as a multiple of the lattice tolerance,
 /// below which a light's shadow lines do not stop a cell from being
-/// interpolated ([`super::fast::signature`]): a hard shadow line of a light
+/// interpolated (the signature in `gather/fast.rs`): a hard shadow line of a light
 /// that adds more than twice the tolerance across it already fails the
 /// probes' test where it passes between them, so the signature only has to
 /// catch the shadow lines of brighter lights that slip past the probes
