@@ -104,19 +104,20 @@ pub(super) fn gather(
     // Pixels of a cell that failed at the last spacing: gathered at the end
     // even if a neighbouring cell interpolated them.
     let mut exact_too = vec![false; pixels.len()];
-    let mut stats = VisitStats::default();
-    let mut counts = GatherCounts::default();
     // What the anchors see, for the sweeps of the pixels between them; and
     // how the pixels asked for are gathered: every one through the lists,
     // or only those whose full query would walk the level.
     let mut lists = local::Lists::new(spacing, !sweep_every);
-    let take = |lists: &mut local::Lists, want: &[usize], sigs: Option<f64>, out: local::Out| {
-        if sweep_every {
-            lists.gather(exact, pixels, &index, want, sigs, out)
-        } else {
-            lists.gather_walking(exact, pixels, &index, want, sigs, out)
-        }
-    };
+    let (mut stats, mut counts) = (VisitStats::default(), GatherCounts::default());
+    let mut take =
+        |lists: &mut local::Lists, want: &[usize], sigs: Option<f64>, out: local::Out| {
+            let pass = if sweep_every {
+                lists.gather(exact, pixels, &index, want, sigs, out)
+            } else {
+                lists.gather_walking(exact, pixels, &index, want, sigs, out)
+            };
+            local::add(&mut stats, &mut counts, pass);
+        };
     // A cell passes when its probes share a signature and each is within
     // the tolerance of the mean of the corners it lies between: the centre
     // (all four) and the middle of each side (two).
@@ -146,15 +147,12 @@ pub(super) fn gather(
         }
         let want: Vec<usize> = trial.iter().flatten().copied().collect();
         want.iter().for_each(|&i| state[i] = 1);
-        let (s, c) = take(
+        take(
             &mut lists,
             &want,
             Some(SHADOWS * relative),
             (&mut values, &mut moments, &mut signature, &mut state),
         );
-        stats.culled_pairs += s.culled_pairs;
-        stats.unreached += s.unreached;
-        counts += c;
         let pass = trial
             .iter()
             .filter(|p| test(p, &values, &signature))
@@ -192,15 +190,12 @@ pub(super) fn gather(
                 }
             }
         }
-        let (s, c) = take(
+        take(
             &mut lists,
             &want,
             Some(SHADOWS * relative),
             (&mut values, &mut moments, &mut signature, &mut state),
         );
-        stats.culled_pairs += s.culled_pairs;
-        stats.unreached += s.unreached;
-        counts += c;
         let last = level + 1 == STEPS.len();
         let mut now_passed = std::collections::HashSet::new();
         for &[x0, y0] in &cells {
@@ -257,16 +252,13 @@ pub(super) fn gather(
     exact.done(interpolated);
     // (The last pass asks for no signatures: their memory goes first.)
     drop((signature, exact_too, passed));
-    let (s, c) = take(
+    take(
         &mut lists,
         &rest,
         None,
         (&mut values, &mut moments, &mut [], &mut state),
     );
     drop(rest);
-    stats.culled_pairs += s.culled_pairs;
-    stats.unreached += s.unreached;
-    counts += c;
     // Every pixel of `rest` is gathered now; less the anchors that the last
     // pass gathered exactly too.
     counts.interpolated = state.iter().filter(|&&s| s == 2).count() as u64;

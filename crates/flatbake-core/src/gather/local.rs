@@ -33,6 +33,29 @@ use super::{Disjoint, PerThread};
 /// Spacing of the anchor pixels, in pixels, unless the preset sets it.
 pub const ANCHOR: i32 = 4;
 
+/// Copies pixel `j` of an exact pass (its light, and its moments and
+/// signature if the pass has them) to pixel `i` of `out`, marked gathered.
+fn store(pass: &super::fast::Pass, j: usize, i: usize, k: usize, out: &mut Out) {
+    let km = if pass.moments.is_empty() { 0 } else { 2 * k };
+    out.0[i * k..(i + 1) * k].copy_from_slice(&pass.values[j * k..(j + 1) * k]);
+    out.1[i * km..(i + 1) * km].copy_from_slice(&pass.moments[j * km..(j + 1) * km]);
+    if !pass.signature.is_empty() {
+        out.2[i] = pass.signature[j];
+    }
+    out.3[i] = 1;
+}
+
+/// Adds what a pass visited and merged to the totals.
+pub(super) fn add(
+    stats: &mut VisitStats,
+    counts: &mut GatherCounts,
+    (s, c): (VisitStats, GatherCounts),
+) {
+    stats.culled_pairs += s.culled_pairs;
+    stats.unreached += s.unreached;
+    *counts += c;
+}
+
 /// Pixels per exact pass of [`Lists::gather_walking`].
 const CHUNK: usize = 1 << 18;
 
@@ -196,7 +219,7 @@ impl Lists {
         index: &dyn Fn(i32, i32) -> Option<usize>,
         want: &[usize],
         signatures: Option<f64>,
-        (values, moments, sigs, state): Out,
+        mut out: Out,
     ) -> (VisitStats, GatherCounts) {
         let g = exact.geometry;
         let k = exact.components();
@@ -312,12 +335,7 @@ impl Lists {
         let pts: Vec<[i32; 2]> = anchors.iter().map(|&i| pixels[i]).collect();
         let (pass, seen, dropped) = run_recording(exact, &pts, signatures);
         for ((j, &i), list) in anchors.iter().enumerate().zip(seen) {
-            values[i * k..(i + 1) * k].copy_from_slice(&pass.values[j * k..(j + 1) * k]);
-            moments[i * km..(i + 1) * km].copy_from_slice(&pass.moments[j * km..(j + 1) * km]);
-            if signatures.is_some() {
-                sigs[i] = pass.signature[j];
-            }
-            state[i] = 1;
+            store(&pass, j, i, k, &mut out);
             self.seen.insert(i, list);
         }
         // (Progress: the wanted pixels that neither the full queries nor
@@ -330,12 +348,7 @@ impl Lists {
         let pts: Vec<[i32; 2]> = full.iter().map(|&i| pixels[i]).collect();
         let pass = exact.run(&pts, signatures);
         for (j, &i) in full.iter().enumerate() {
-            values[i * k..(i + 1) * k].copy_from_slice(&pass.values[j * k..(j + 1) * k]);
-            moments[i * km..(i + 1) * km].copy_from_slice(&pass.moments[j * km..(j + 1) * km]);
-            if signatures.is_some() {
-                sigs[i] = pass.signature[j];
-            }
-            state[i] = 1;
+            store(&pass, j, i, k, &mut out);
         }
         stats.culled_pairs += pass.stats.culled_pairs;
         stats.unreached += pass.stats.unreached;
@@ -350,12 +363,12 @@ impl Lists {
         let (sv, smo, ss, sm) = self.sweep(exact, pixels, &groups, near.as_ref(), signatures);
         drop(near);
         for (j, i) in groups.iter().flat_map(|gr| gr.pixels.iter()).enumerate() {
-            values[i * k..(i + 1) * k].copy_from_slice(&sv[j * k..(j + 1) * k]);
-            moments[i * km..(i + 1) * km].copy_from_slice(&smo[j * km..(j + 1) * km]);
+            out.0[i * k..(i + 1) * k].copy_from_slice(&sv[j * k..(j + 1) * k]);
+            out.1[i * km..(i + 1) * km].copy_from_slice(&smo[j * km..(j + 1) * km]);
             if signatures.is_some() {
-                sigs[*i] = ss[j];
+                out.2[*i] = ss[j];
             }
-            state[*i] = 1;
+            out.3[*i] = 1;
         }
         stats.culled_pairs += sm.1;
         counts += sm.0;
@@ -372,10 +385,9 @@ impl Lists {
         index: &dyn Fn(i32, i32) -> Option<usize>,
         want: &[usize],
         signatures: Option<f64>,
-        (values, moments, sigs, state): Out,
+        mut out: Out,
     ) -> (VisitStats, GatherCounts) {
         let k = exact.components();
-        let km = if exact.directional { 2 * k } else { 0 };
         let (mut stats, mut counts) = (VisitStats::default(), GatherCounts::default());
         let mut rest = Vec::new();
         // In chunks of pixels (in the order asked for, rows of tiles): the
@@ -390,12 +402,7 @@ impl Lists {
                 rest.push(want[j]);
             }
             for (j, &i) in want.iter().enumerate().filter(|&(j, _)| !handed_back[j]) {
-                values[i * k..(i + 1) * k].copy_from_slice(&pass.values[j * k..(j + 1) * k]);
-                moments[i * km..(i + 1) * km].copy_from_slice(&pass.moments[j * km..(j + 1) * km]);
-                if signatures.is_some() {
-                    sigs[i] = pass.signature[j];
-                }
-                state[i] = 1;
+                store(&pass, j, i, k, &mut out);
             }
             stats.culled_pairs += pass.stats.culled_pairs;
             stats.unreached += pass.stats.unreached;
@@ -403,14 +410,7 @@ impl Lists {
         }
         if !rest.is_empty() {
             rest.sort_unstable();
-            let (s, c) = self.gather(
-                exact,
-                pixels,
-                index,
-                &rest,
-                signatures,
-                (values, moments, sigs, state),
-            );
+            let (s, c) = self.gather(exact, pixels, index, &rest, signatures, out);
             stats.culled_pairs += s.culled_pairs;
             stats.unreached += s.unreached;
             counts += c;
