@@ -196,7 +196,9 @@ impl<'a> Tally<'a> {
         let done = self.done.fetch_add(n as u64, Relaxed) + n as u64;
         let permille = done * 1000 / self.total;
         if self.shown.fetch_max(permille, Relaxed) < permille {
-            hook(done as f64 / self.total as f64);
+            // (At most 1: a lattice whose trial fails gathers its probes
+            // again.)
+            hook((done as f64 / self.total as f64).min(1.0));
         }
     }
 }
