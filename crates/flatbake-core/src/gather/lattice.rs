@@ -111,12 +111,13 @@ pub(super) fn gather(
     let (mut stats, mut counts) = (VisitStats::default(), GatherCounts::default());
     let mut take =
         |lists: &mut local::Lists, want: &[usize], sigs: Option<f64>, out: local::Out| {
-            let pass = if sweep_every {
+            let (s, c) = if sweep_every {
                 lists.gather(exact, pixels, &index, want, sigs, out)
             } else {
                 lists.gather_walking(exact, pixels, &index, want, sigs, out)
             };
-            local::add(&mut stats, &mut counts, pass);
+            stats += s;
+            counts += c;
         };
     // A cell passes when its probes share a signature and each is within
     // the tolerance of the mean of the corners it lies between: the centre

@@ -45,17 +45,6 @@ fn store(pass: &super::fast::Pass, j: usize, i: usize, k: usize, out: &mut Out) 
     out.3[i] = 1;
 }
 
-/// Adds what a pass visited and merged to the totals.
-pub(super) fn add(
-    stats: &mut VisitStats,
-    counts: &mut GatherCounts,
-    (s, c): (VisitStats, GatherCounts),
-) {
-    stats.culled_pairs += s.culled_pairs;
-    stats.unreached += s.unreached;
-    *counts += c;
-}
-
 /// Pixels per exact pass of [`Lists::gather_walking`].
 const CHUNK: usize = 1 << 18;
 
@@ -350,8 +339,7 @@ impl Lists {
         for (j, &i) in full.iter().enumerate() {
             store(&pass, j, i, k, &mut out);
         }
-        stats.culled_pairs += pass.stats.culled_pairs;
-        stats.unreached += pass.stats.unreached;
+        stats += pass.stats;
         counts += pass.counts;
         // The rest: a sweep over their block's list. Blocks of one 8 px tile
         // one after the other, as the patch cuts are per tile.
@@ -404,15 +392,13 @@ impl Lists {
             for (j, &i) in want.iter().enumerate().filter(|&(j, _)| !handed_back[j]) {
                 store(&pass, j, i, k, &mut out);
             }
-            stats.culled_pairs += pass.stats.culled_pairs;
-            stats.unreached += pass.stats.unreached;
+            stats += pass.stats;
             counts += pass.counts;
         }
         if !rest.is_empty() {
             rest.sort_unstable();
             let (s, c) = self.gather(exact, pixels, index, &rest, signatures, out);
-            stats.culled_pairs += s.culled_pairs;
-            stats.unreached += s.unreached;
+            stats += s;
             counts += c;
         }
         (stats, counts)
@@ -661,8 +647,7 @@ pub(super) fn gather_all(exact: &Exact, pixels: &[[i32; 2]], spacing: i32) -> su
             None,
             (&mut values, &mut moments, &mut [], &mut state),
         );
-        stats.culled_pairs += s.culled_pairs;
-        stats.unreached += s.unreached;
+        stats += s;
         counts += c;
     }
     super::fast::Gather {

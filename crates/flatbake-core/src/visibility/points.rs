@@ -94,6 +94,13 @@ pub struct VisitStats {
     pub unreached: u64,
 }
 
+impl std::ops::AddAssign for VisitStats {
+    fn add_assign(&mut self, o: VisitStats) {
+        self.culled_pairs += o.culled_pairs;
+        self.unreached += o.unreached;
+    }
+}
+
 /// Runs `f(point index, spans)` for every query point, with the exact
 /// visibility of that point, in parallel over leaf tiles. `pixel[i]` is the
 /// free pixel a point belongs to, `pos[i]` its position, `view[i]` its view.
