@@ -565,13 +565,13 @@ pub fn gather_with_moments(
         tally: &tally,
         directional: directional && kernel == Kernel::Flatland,
     };
-    match lattice {
-        Some(relative) if kernel == Kernel::Flatland => {
+    match (lattice, anchors) {
+        (Some(relative), _) if kernel == Kernel::Flatland => {
             let spacing = anchors.unwrap_or(super::local::ANCHOR);
             super::lattice::gather(&exact, pixels, relative, tolerance, spacing, sweep_every)
         }
-        None if kernel == Kernel::Flatland && anchors.is_some() => {
-            super::local::gather_all(&exact, pixels, anchors.unwrap_or(super::local::ANCHOR))
+        (None, Some(spacing)) if kernel == Kernel::Flatland => {
+            super::local::gather_all(&exact, pixels, spacing)
         }
         _ => {
             let pass = exact.run(pixels, None);
