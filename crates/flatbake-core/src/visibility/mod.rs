@@ -117,6 +117,18 @@ impl Piece {
         self.c.abs() * if self.u_const { su } else { sv }
     }
 
+    /// Distance from `p` (the query point) to the nearest point of the
+    /// piece (pieces are axis-aligned).
+    #[inline]
+    fn nearest(&self, p: [f64; 2]) -> f64 {
+        let gap = |a: f64, b: f64, x: f64| (a.min(b) - x).max(x - a.max(b)).max(0.0);
+        let (dx, dy) = (
+            gap(self.va[0], self.vb[0], p[0]),
+            gap(self.va[1], self.vb[1], p[1]),
+        );
+        (dx * dx + dy * dy).sqrt()
+    }
+
     /// Distance from the query point to the piece along pseudo-angle `k`.
     #[inline]
     fn distance_at(&self, k: f64) -> f64 {

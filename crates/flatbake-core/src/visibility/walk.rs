@@ -65,6 +65,9 @@ fn box_range(q: &Query, x0: f64, y0: f64, x1: f64, y1: f64) -> BoxView {
 
 const NONE: u32 = u32::MAX;
 
+/// [`Iv::far`] not yet known (a distance is never negative).
+const UNKNOWN: f64 = f64::NEG_INFINITY;
+
 /// One interval of the angular buffer, `[previous end, end)`.
 #[derive(Clone, Copy, Debug)]
 struct Iv {
@@ -84,6 +87,10 @@ struct Iv {
 pub(super) struct Coverage {
     iv: Vec<Iv>,
     scratch: Vec<Iv>,
+    out: Vec<Iv>,
+    /// Where the last search ended: the walk inserts the edges of one
+    /// block after another, so the next piece is usually close by.
+    hint: usize,
 }
 
 impl Coverage {
@@ -95,6 +102,53 @@ impl Coverage {
             owner: NONE,
             far: f64::INFINITY,
         });
+    }
+
+    /// The first interval that ends after `k` (`iv.partition_point(|v|
+    /// v.end <= k)`), searched outwards from [`Coverage::hint`].
+    #[inline]
+    fn find(&mut self, k: f64) -> usize {
+        let n = self.iv.len();
+        let before = |i: usize| self.iv[i].end <= k;
+        let h = self.hint.min(n);
+        // The answer lies in `lo..=hi`: widen by doubling steps from `h`.
+        let (mut lo, mut hi);
+        if h < n && before(h) {
+            let mut step = 1;
+            lo = h + 1;
+            loop {
+                let probe = h + step;
+                if probe >= n {
+                    hi = n;
+                    break;
+                }
+                if !before(probe) {
+                    hi = probe;
+                    break;
+                }
+                lo = probe + 1;
+                step *= 2;
+            }
+        } else {
+            hi = h;
+            let mut step = 1;
+            loop {
+                if step > h {
+                    lo = 0;
+                    break;
+                }
+                let probe = h - step;
+                if before(probe) {
+                    lo = probe + 1;
+                    break;
+                }
+                hi = probe;
+                step *= 2;
+            }
+        }
+        let i = lo + self.iv[lo..hi].partition_point(|v| v.end <= k);
+        self.hint = i;
+        i
     }
 
     #[inline]
@@ -116,17 +170,27 @@ impl Coverage {
         true
     }
 
-    /// Lets piece `pi` take every part of `[ka, kb)` where it is nearer.
-    fn insert(&mut self, pieces: &[Piece], pi: u32) {
+    /// Lets piece `pi` take every part of `[ka, kb)` where it is nearer
+    /// (seen from `p`).
+    fn insert(&mut self, pieces: &[Piece], pi: u32, p: [f64; 2]) {
         let pc = pieces[pi as usize];
         let n = self.iv.len();
-        let first = self.iv.partition_point(|v| v.end <= pc.ka);
+        let first = self.find(pc.ka);
+        // An interval whose owner is nowhere as far as the piece comes
+        // near `p` keeps its owner without a ray test (walked near to far,
+        // most pieces lose everywhere). The margin covers the rounding of
+        // both distances, so the test only decides what the ray test would.
+        let near = pc.nearest(p) * (1.0 - 1e-9);
         // Quick rejection: hidden everywhere it overlaps.
         let mut i = first;
         let mut wins_any = false;
         while i < n && self.start(i) < pc.kb {
-            let (lo, hi) = (self.start(i).max(pc.ka), self.iv[i].end.min(pc.kb));
             let old = self.iv[i].owner;
+            if old != NONE && self.iv[i].far < near {
+                i += 1;
+                continue;
+            }
+            let (lo, hi) = (self.start(i).max(pc.ka), self.iv[i].end.min(pc.kb));
             if old == NONE || {
                 let (du, dv) = diamond_dir(0.5 * (lo + hi));
                 let o = &pieces[old as usize];
@@ -156,18 +220,20 @@ impl Coverage {
         while i < n && self.start(i) < pc.kb {
             let (s, v) = (self.start(i), self.iv[i]);
             let (lo, hi) = (s.max(pc.ka), v.end.min(pc.kb));
-            let wins = v.owner == NONE || {
-                let (du, dv) = diamond_dir(0.5 * (lo + hi));
-                let o = &pieces[v.owner as usize];
-                let (tp, to) = (pc.t(du, dv), o.t(du, dv));
-                tp < to || (tp == to && pi < v.owner)
-            };
+            let keeps = v.owner != NONE && v.far < near;
+            let wins = !keeps
+                && (v.owner == NONE || {
+                    let (du, dv) = diamond_dir(0.5 * (lo + hi));
+                    let o = &pieces[v.owner as usize];
+                    let (tp, to) = (pc.t(du, dv), o.t(du, dv));
+                    tp < to || (tp == to && pi < v.owner)
+                });
             if lo > s {
                 self.scratch.push(Iv {
                     end: lo,
                     vend: pc.va,
                     owner: v.owner,
-                    far: 0.0,
+                    far: UNKNOWN,
                 });
             }
             let vhi = if hi == pc.kb && hi < v.end {
@@ -175,34 +241,43 @@ impl Coverage {
             } else {
                 v.vend
             };
+            // An interval the piece leaves whole keeps its farthest distance.
+            let whole = !wins && lo == s && hi == v.end;
             self.scratch.push(Iv {
                 end: hi,
                 vend: vhi,
                 owner: if wins { pi } else { v.owner },
-                far: 0.0,
+                far: if whole { v.far } else { UNKNOWN },
             });
             if v.end > hi {
                 self.scratch.push(Iv {
                     end: v.end,
                     vend: v.vend,
                     owner: v.owner,
-                    far: 0.0,
+                    far: UNKNOWN,
                 });
             }
             i += 1;
         }
         let mut b = i;
+        // The first run also takes in the interval before (not in `scratch`).
+        let mut first_run = 1;
         if a > 0 && self.iv[a - 1].owner == self.scratch[0].owner {
             a -= 1;
+            first_run = 2;
         }
         if b < n && self.iv[b].owner == self.scratch[self.scratch.len() - 1].owner {
             self.scratch.push(self.iv[b]);
             b += 1;
         }
-        // Consecutive pieces of one owner become one interval.
-        let mut out = Vec::with_capacity(self.scratch.len());
+        // Consecutive pieces of one owner become one interval; one that is
+        // an old interval unchanged keeps its distance.
+        let mut out = std::mem::take(&mut self.out);
+        out.clear();
         let mut seg_start = self.start(a);
+        let mut run = first_run - 1;
         for (j, t) in self.scratch.iter().enumerate() {
+            run += 1;
             if self
                 .scratch
                 .get(j + 1)
@@ -210,13 +285,17 @@ impl Coverage {
             {
                 continue;
             }
-            out.push(Iv {
-                far: piece_far(t.owner, seg_start, t.end),
-                ..*t
-            });
+            let far = if run == 1 && t.far != UNKNOWN {
+                t.far
+            } else {
+                piece_far(t.owner, seg_start, t.end)
+            };
+            out.push(Iv { far, ..*t });
             seg_start = t.end;
+            run = 0;
         }
-        self.iv.splice(a..b, out);
+        self.iv.splice(a..b, out.drain(..));
+        self.out = out;
     }
 }
 
@@ -325,7 +404,7 @@ impl Sweeper {
             Self::mark(&mut self.pieces[from..], w.at(edges, ei, None, q.p));
         }
         for pi in from..self.pieces.len() {
-            self.cover.insert(&self.pieces, pi as u32);
+            self.cover.insert(&self.pieces, pi as u32, q.p);
         }
     }
 
@@ -460,6 +539,37 @@ impl Sweeper {
                 k0,
                 k1,
             });
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The search from a hint finds what a plain binary search finds, from
+    /// every hint, for keys before, between, on and after the ends.
+    #[test]
+    fn find_from_any_hint_agrees_with_a_binary_search() {
+        let mut c = Coverage::default();
+        for n in [1usize, 2, 3, 7, 40] {
+            c.iv = (1..=n)
+                .map(|i| Iv {
+                    end: i as f64 * 0.1,
+                    vend: [0.0; 2],
+                    owner: NONE,
+                    far: f64::INFINITY,
+                })
+                .collect();
+            for hint in 0..=n + 2 {
+                for step in 0..=(2 * n + 4) {
+                    let k = step as f64 * 0.05 - 0.05;
+                    c.hint = hint;
+                    let want = c.iv.partition_point(|v| v.end <= k);
+                    assert_eq!(c.find(k), want, "n {n}, hint {hint}, k {k}");
+                    assert_eq!(c.hint, want);
+                }
+            }
         }
     }
 }
