@@ -98,16 +98,22 @@ impl FormFactors {
         }
     }
 
-    /// Builds `S` and `D` from raw rows `F0` (sorted by column) and patch lengths.
-    pub fn from_raw_rows(rows: Vec<Vec<(u32, f64)>>, len: &[f64]) -> FormFactors {
-        let n = rows.len();
-        let coverage: Vec<f64> = rows.iter().map(|r| r.iter().map(|e| e.1).sum()).collect();
+    /// Builds `S` and `D` from raw rows `F0` (each sorted by column) and
+    /// patch lengths.
+    pub fn from_raw_rows(raw: RawRows, len: &[f64]) -> FormFactors {
+        let n = raw.row_ptr.len() - 1;
+        let row = |i: usize| {
+            let r = raw.row_ptr[i]..raw.row_ptr[i + 1];
+            raw.col[r.clone()]
+                .iter()
+                .copied()
+                .zip(raw.val[r].iter().copied())
+        };
+        let coverage: Vec<f64> = (0..n).map(|i| row(i).map(|e| e.1).sum()).collect();
         // A_ij = L_i F0_ij / 2 and its transpose, merged row by row.
         let mut tcount = vec![0usize; n + 1];
-        for r in &rows {
-            for &(j, _) in r {
-                tcount[j as usize + 1] += 1;
-            }
+        for &j in &raw.col {
+            tcount[j as usize + 1] += 1;
         }
         for i in 0..n {
             tcount[i + 1] += tcount[i];
@@ -115,42 +121,55 @@ impl FormFactors {
         let mut tcol = vec![0u32; tcount[n]];
         let mut tval = vec![0f64; tcount[n]];
         let mut fill = tcount.clone();
-        for (i, r) in rows.iter().enumerate() {
-            for &(j, v) in r {
+        for i in 0..n {
+            for (j, v) in row(i) {
                 let k = fill[j as usize];
                 tcol[k] = i as u32;
                 tval[k] = 0.5 * len[i] * v;
                 fill[j as usize] += 1;
             }
         }
-        let mut row_ptr = Vec::with_capacity(n + 1);
-        let mut col = Vec::new();
-        let mut val = Vec::new();
-        row_ptr.push(0);
-        for (i, r) in rows.iter().enumerate() {
-            // Merge row i of A (sorted) with row i of A^T (sorted by construction).
+        drop(fill);
+        // Row i of A (sorted) merged with row i of A^T (sorted by
+        // construction): `emit(column, value)` for each entry of S.
+        let merge = |i: usize, emit: &mut dyn FnMut(u32, f64)| {
+            let r = &raw.col[raw.row_ptr[i]..raw.row_ptr[i + 1]];
+            let rv = &raw.val[raw.row_ptr[i]..raw.row_ptr[i + 1]];
             let t = tcount[i]..tcount[i + 1];
             let (mut a, mut b) = (0, t.start);
             while a < r.len() || b < t.end {
-                let ca = r.get(a).map_or(u32::MAX, |e| e.0);
+                let ca = r.get(a).map_or(u32::MAX, |&c| c);
                 let cb = if b < t.end { tcol[b] } else { u32::MAX };
                 if ca == cb {
-                    col.push(ca);
-                    val.push(0.5 * len[i] * r[a].1 + tval[b]);
+                    emit(ca, 0.5 * len[i] * rv[a] + tval[b]);
                     a += 1;
                     b += 1;
                 } else if ca < cb {
-                    col.push(ca);
-                    val.push(0.5 * len[i] * r[a].1);
+                    emit(ca, 0.5 * len[i] * rv[a]);
                     a += 1;
                 } else {
-                    col.push(cb);
-                    val.push(tval[b]);
+                    emit(cb, tval[b]);
                     b += 1;
                 }
             }
+        };
+        // Counted first, so that S is allocated once at its size.
+        let mut entries = 0;
+        for i in 0..n {
+            merge(i, &mut |_, _| entries += 1);
+        }
+        let mut row_ptr = Vec::with_capacity(n + 1);
+        let mut col = Vec::with_capacity(entries);
+        let mut val = Vec::with_capacity(entries);
+        row_ptr.push(0);
+        for i in 0..n {
+            merge(i, &mut |c, v| {
+                col.push(c);
+                val.push(v);
+            });
             row_ptr.push(col.len());
         }
+        drop((tcol, tval, raw));
         let mut coverage = coverage;
         let dlen = (0..n)
             .map(|i| {
@@ -177,6 +196,18 @@ impl FormFactors {
             coverage,
         }
     }
+}
+
+/// The raw rows `F0` of the form factors, one per patch (CSR, each row
+/// sorted by column), from which [`FormFactors::from_raw_rows`] builds `S`.
+#[derive(Clone, Debug, Default)]
+pub struct RawRows {
+    /// Row starts.
+    pub row_ptr: Vec<usize>,
+    /// Patch of each entry.
+    pub col: Vec<u32>,
+    /// `F0` of each entry.
+    pub val: Vec<f64>,
 }
 
 /// What the quadrature points of each patch say of its light's profile:
@@ -396,8 +427,8 @@ pub fn form_factors(
                 .expect("not merged yet");
         }
     }
-    // One pass, patch by patch: the slope rows into one table, the F0 rows
-    // into their own vectors, each triple row freed as soon as it is split.
+    // One pass, patch by patch: the slope rows and the F0 rows into one
+    // table each, each triple row freed as soon as it is split.
     let mut slopes = SlopeRows {
         q,
         row_ptr: Vec::with_capacity(n + 1),
@@ -408,18 +439,25 @@ pub fn form_factors(
     slopes.col.reserve_exact(entries);
     slopes.val.reserve_exact(entries);
     slopes.row_ptr.push(0);
-    let rows: Vec<Vec<(u32, f64)>> = merged
-        .into_iter()
-        .map(|m| {
-            let row = m.into_inner().unwrap_or_default();
-            slopes.col.extend(row.iter().map(|e| e.0));
-            slopes.val.extend(row.iter().map(|e| e.2));
-            slopes.row_ptr.push(slopes.col.len());
-            row.iter().map(|e| (e.0, e.1)).collect()
-        })
-        .collect();
+    let mut raw = RawRows {
+        row_ptr: Vec::with_capacity(n + 1),
+        col: Vec::new(),
+        val: Vec::new(),
+    };
+    raw.col.reserve_exact(entries);
+    raw.val.reserve_exact(entries);
+    raw.row_ptr.push(0);
+    for m in merged {
+        let row = m.into_inner().unwrap_or_default();
+        slopes.col.extend(row.iter().map(|e| e.0));
+        slopes.val.extend(row.iter().map(|e| e.2));
+        slopes.row_ptr.push(slopes.col.len());
+        raw.col.extend(row.iter().map(|e| e.0));
+        raw.val.extend(row.iter().map(|e| e.1));
+        raw.row_ptr.push(raw.col.len());
+    }
     let len: Vec<f64> = (0..n).map(|p| patches.length(p)).collect();
-    let ff = FormFactors::from_raw_rows(rows, &len);
+    let ff = FormFactors::from_raw_rows(raw, &len);
     (ff, slopes, stats)
 }
 

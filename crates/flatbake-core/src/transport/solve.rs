@@ -180,9 +180,11 @@ impl System {
         for (k, &i) in unknown.iter().enumerate() {
             local[i] = k as u32;
         }
-        let mut row_ptr = vec![0];
-        let mut col = Vec::new();
-        let mut val = Vec::new();
+        let mut row_ptr = Vec::with_capacity(unknown.len() + 1);
+        row_ptr.push(0);
+        // At most every entry of S: allocated once, not grown by doubling.
+        let mut col = Vec::with_capacity(ff.nnz());
+        let mut val = Vec::with_capacity(ff.nnz());
         let mut diag = Vec::with_capacity(unknown.len());
         let mut rhs = Vec::with_capacity(unknown.len());
         for &i in &unknown {
