@@ -160,31 +160,28 @@ pub fn truncated(ff: &FormFactors, rho: &[f64], e: &[f64], bounces: u32) -> Vec<
     b
 }
 
-/// The symmetric system over the reflecting patches.
-struct System {
+/// The symmetric system over the reflecting patches: the off-diagonal part
+/// `-S_UU` read from the form factors in place (a copy would double the
+/// solve's memory on levels of millions of entries), plus the diagonal
+/// `D / rho - S_ii`.
+struct System<'a> {
+    ff: &'a FormFactors,
     /// Global patch index of each unknown.
     unknown: Vec<usize>,
-    /// CSR of the off-diagonal part `-S_UU` plus the diagonal `D / rho - S_ii`.
-    row_ptr: Vec<usize>,
-    col: Vec<u32>,
-    val: Vec<f64>,
+    /// Per patch: its unknown, or `u32::MAX`.
+    local: Vec<u32>,
     diag: Vec<f64>,
     rhs: Vec<f64>,
 }
 
-impl System {
-    fn new(ff: &FormFactors, rho: &[f64], e: &[f64]) -> System {
+impl<'a> System<'a> {
+    fn new(ff: &'a FormFactors, rho: &[f64], e: &[f64]) -> System<'a> {
         let n = ff.n();
         let unknown: Vec<usize> = (0..n).filter(|&i| rho[i] > 0.0).collect();
         let mut local = vec![u32::MAX; n];
         for (k, &i) in unknown.iter().enumerate() {
             local[i] = k as u32;
         }
-        let mut row_ptr = Vec::with_capacity(unknown.len() + 1);
-        row_ptr.push(0);
-        // At most every entry of S: allocated once, not grown by doubling.
-        let mut col = Vec::with_capacity(ff.nnz());
-        let mut val = Vec::with_capacity(ff.nnz());
         let mut diag = Vec::with_capacity(unknown.len());
         let mut rhs = Vec::with_capacity(unknown.len());
         for &i in &unknown {
@@ -195,25 +192,31 @@ impl System {
                 let s = ff.val[k];
                 if j == i {
                     d -= s;
-                } else if local[j] != u32::MAX {
-                    col.push(local[j]);
-                    val.push(-s);
-                } else {
+                } else if local[j] == u32::MAX {
                     b += s * e[j];
                 }
             }
             diag.push(d);
             rhs.push(b);
-            row_ptr.push(col.len());
         }
         System {
+            ff,
             unknown,
-            row_ptr,
-            col,
-            val,
+            local,
             diag,
             rhs,
         }
+    }
+
+    /// The off-diagonal entries of unknown `i`'s row: `(unknown, -S)`.
+    #[inline]
+    fn row(&self, i: usize) -> impl Iterator<Item = (usize, f64)> + '_ {
+        let (g, ff) = (self.unknown[i], self.ff);
+        (ff.row_ptr[g]..ff.row_ptr[g + 1]).filter_map(move |k| {
+            let j = ff.col[k] as usize;
+            let l = self.local[j];
+            (j != g && l != u32::MAX).then(|| (l as usize, -ff.val[k]))
+        })
     }
 
     fn len(&self) -> usize {
@@ -226,8 +229,8 @@ impl System {
             .with_min_len(256)
             .for_each(|(i, yi)| {
                 let mut s = self.diag[i] * x[i];
-                for k in self.row_ptr[i]..self.row_ptr[i + 1] {
-                    s += self.val[k] * x[self.col[k] as usize];
+                for (j, v) in self.row(i) {
+                    s += v * x[j];
                 }
                 *yi = s;
             });
@@ -238,8 +241,8 @@ impl System {
         let mut m = DMatrix::zeros(n, n);
         for i in 0..n {
             m[(i, i)] = self.diag[i];
-            for k in self.row_ptr[i]..self.row_ptr[i + 1] {
-                m[(i, self.col[k] as usize)] = self.val[k];
+            for (j, v) in self.row(i) {
+                m[(i, j)] = v;
             }
         }
         m
@@ -262,9 +265,7 @@ impl System {
             while let Some(i) = stack.pop() {
                 members.push(i);
                 let g = self.unknown[i];
-                let row_sum: f64 = -self.val[self.row_ptr[i]..self.row_ptr[i + 1]]
-                    .iter()
-                    .sum::<f64>();
+                let row_sum: f64 = -self.row(i).map(|(_, v)| v).sum::<f64>();
                 // Closed: perfect mirror, sees only walls, and all of them unknowns.
                 let s_total: f64 = ff.val[ff.row_ptr[g]..ff.row_ptr[g + 1]].iter().sum();
                 if rho[g] < 1.0
@@ -273,8 +274,7 @@ impl System {
                 {
                     closed = false;
                 }
-                for k in self.row_ptr[i]..self.row_ptr[i + 1] {
-                    let j = self.col[k] as usize;
+                for (j, _) in self.row(i) {
                     if !seen[j] {
                         seen[j] = true;
                         stack.push(j);
