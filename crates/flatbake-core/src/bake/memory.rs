@@ -15,10 +15,15 @@
 //! - per patch: materials, radiosity, solver vectors, slopes and the patch
 //!   tree; counted as [`PER_PATCH`];
 //! - per entry of the patches' merged form-factor rows (a patch and a patch
-//!   that some quadrature point of it sees): the merged rows, the slope
-//!   rows and the matrix built from them, about 52 bytes per entry at the peak
-//!   of the form factors (the points' own rows are merged as soon as each
-//!   patch's last point is visited, so they are never all kept); counted
+//!   that some quadrature point of it sees): at the peak of the form
+//!   factors, the raw rows and the slope rows (12 bytes each) beside the
+//!   symmetric matrix built from them (12 bytes per entry of it, as many as
+//!   the raw rows where their pattern is symmetric) and the entries whose
+//!   transpose is missing (16 bytes each): 36 bytes per entry on most
+//!   levels, 48 on a level of one-pixel dots, where they are 30 % of the
+//!   matrix (the points' own rows are merged as soon as each patch's last
+//!   point is visited, so they are never all kept; the solver reads the
+//!   matrix in place); counted
 //!   as [`PER_FACTOR_ENTRY`] and estimated from the exact visibility of a
 //!   sample of patches ([`transport::estimate_entries`]);
 //! - the dense fallback solve of systems up to the solver's fallback size,
@@ -40,7 +45,7 @@ pub const PER_PIXEL: u64 = 100;
 pub const PER_PATCH: u64 = 200;
 /// Bytes per entry of the patches' merged form-factor rows, with the slope
 /// rows and the matrix built from them.
-pub const PER_FACTOR_ENTRY: u64 = 64;
+pub const PER_FACTOR_ENTRY: u64 = 48;
 /// Bytes per traced edge (see the module docs).
 pub const PER_EDGE: u64 = 220;
 /// What every bake needs whatever its size: threads, tables, buffers.
