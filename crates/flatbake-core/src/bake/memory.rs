@@ -22,9 +22,10 @@
 //!   transpose is missing (16 bytes each): 36 bytes per entry on most
 //!   levels, 48 on a level of one-pixel dots, where they are 30 % of the
 //!   matrix (the points' own rows are merged as soon as each patch's last
-//!   point is visited, so they are never all kept; the solver reads the
-//!   matrix in place); counted
-//!   as [`PER_FACTOR_ENTRY`] and estimated from the exact visibility of a
+//!   point is visited, so they are never all kept; the freed merged rows
+//!   are handed back to the system; the solver reads the matrix in place);
+//!   counted at 50 bytes for a margin (the 640 px dots: estimated 13.2 GB,
+//!   peak 12.57 GB) as [`PER_FACTOR_ENTRY`], and estimated from the exact visibility of a
 //!   sample of patches ([`transport::estimate_entries`]);
 //! - the dense fallback solve of systems up to the solver's fallback size,
 //!   8 bytes per matrix entry;
@@ -45,7 +46,7 @@ pub const PER_PIXEL: u64 = 100;
 pub const PER_PATCH: u64 = 200;
 /// Bytes per entry of the patches' merged form-factor rows, with the slope
 /// rows and the matrix built from them.
-pub const PER_FACTOR_ENTRY: u64 = 48;
+pub const PER_FACTOR_ENTRY: u64 = 50;
 /// Bytes per traced edge (see the module docs).
 pub const PER_EDGE: u64 = 220;
 /// What every bake needs whatever its size: threads, tables, buffers.
