@@ -19,8 +19,8 @@
 //!   factors, the raw rows and the slope rows (12 bytes each) beside the
 //!   symmetric matrix built from them (12 bytes per entry of it, as many as
 //!   the raw rows where their pattern is symmetric) and the entries whose
-//!   transpose is missing (16 bytes each): 36 bytes per entry on most
-//!   levels, 48 on a level of one-pixel dots, where they are 30 % of the
+//!   transpose is missing (8 bytes each): 36 bytes per entry on most
+//!   levels, 45 on a level of one-pixel dots, where they are 30 % of the
 //!   matrix (the points' own rows are merged as soon as each patch's last
 //!   point is visited, so they are never all kept; the freed merged rows
 //!   are handed back to the system; the solver reads the matrix in place);

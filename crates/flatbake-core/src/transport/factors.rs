@@ -101,7 +101,7 @@ impl FormFactors {
     /// Builds `S` and `D` from raw rows `F0` (each sorted by column) and
     /// patch lengths.
     pub fn from_raw_rows(raw: RawRows, len: &[f64]) -> FormFactors {
-        let n = raw.row_ptr.len() - 1;
+        let n = raw.row_ptr.len().saturating_sub(1);
         let row = |i: usize| {
             let r = raw.row_ptr[i]..raw.row_ptr[i + 1];
             raw.col[r.clone()]
@@ -120,15 +120,16 @@ impl FormFactors {
         // moving forward only, finds them all in one pass over A.
         let mut cursor: Vec<usize> = raw.row_ptr[..n].to_vec();
         // Entry (j, i) of A, if any, consumed by row i's look-up in row j;
-        // the entries passed over on the way have no transpose.
-        let mut extras: Vec<(u32, u32, usize)> = Vec::new();
+        // the entries passed over on the way have no transpose: `(i, j)`
+        // of S, kept as that pair (its value is found again below).
+        let mut extras: Vec<(u32, u32)> = Vec::new();
         let find = |cursor: &mut [usize], j: usize, i: u32, extras: Option<&mut Vec<_>>| {
             let end = raw.row_ptr[j + 1];
             let mut c = cursor[j];
             let mut passed = extras;
             while c < end && raw.col[c] < i {
                 if let Some(x) = passed.as_deref_mut() {
-                    x.push((raw.col[c], j as u32, c));
+                    x.push((raw.col[c], j as u32));
                 }
                 c += 1;
             }
@@ -148,7 +149,7 @@ impl FormFactors {
         }
         for j in 0..n {
             for c in cursor[j]..raw.row_ptr[j + 1] {
-                extras.push((raw.col[c], j as u32, c));
+                extras.push((raw.col[c], j as u32));
             }
         }
         extras.sort_unstable();
@@ -164,7 +165,7 @@ impl FormFactors {
             loop {
                 let ca = if k < end { raw.col[k] } else { u32::MAX };
                 let cx = match extras.get(x) {
-                    Some(&(r, c, _)) if r as usize == i => c,
+                    Some(&(r, c)) if r as usize == i => c,
                     _ => u32::MAX,
                 };
                 if ca == u32::MAX && cx == u32::MAX {
@@ -180,10 +181,14 @@ impl FormFactors {
                     });
                     k += 1;
                 } else {
-                    // An entry of A^T alone (the two never share a column).
-                    let (_, c, p) = extras[x];
-                    col.push(c);
-                    val.push(0.5 * len[c as usize] * raw.val[p]);
+                    // An entry of A^T alone (the two never share a column):
+                    // A_ji, found by the same cursors, since the look-ups
+                    // into row j still come in increasing i.
+                    let j = cx as usize;
+                    let p = find(&mut cursor, j, i as u32, None)
+                        .expect("an entry without a transpose is in its row");
+                    col.push(cx);
+                    val.push(0.5 * len[j] * raw.val[p]);
                     x += 1;
                 }
             }
