@@ -25,8 +25,8 @@
 //!   point is visited, so they are never all kept; the freed merged rows
 //!   are handed back to the system; the solver reads the matrix in place);
 //!   counted at 50 bytes for a margin (the 640 px dots: estimated 13.2 GB,
-//!   peak 12.57 GB) as [`PER_FACTOR_ENTRY`], and estimated from the exact visibility of a
-//!   sample of patches ([`transport::estimate_entries`]);
+//!   peak 11.62 GB) as [`PER_FACTOR_ENTRY`], and estimated from the exact
+//!   visibility of a sample of patches ([`transport::estimate_entries`]);
 //! - the dense fallback solve of systems up to the solver's fallback size,
 //!   8 bytes per matrix entry;
 //! - per-emitter responses (light layers, relight caches): 12 bytes per
