@@ -102,14 +102,9 @@ impl FormFactors {
     /// patch lengths.
     pub fn from_raw_rows(raw: RawRows, len: &[f64]) -> FormFactors {
         let n = raw.row_ptr.len().saturating_sub(1);
-        let row = |i: usize| {
-            let r = raw.row_ptr[i]..raw.row_ptr[i + 1];
-            raw.col[r.clone()]
-                .iter()
-                .copied()
-                .zip(raw.val[r].iter().copied())
-        };
-        let coverage: Vec<f64> = (0..n).map(|i| row(i).map(|e| e.1).sum()).collect();
+        let coverage: Vec<f64> = (0..n)
+            .map(|i| raw.val[raw.row_ptr[i]..raw.row_ptr[i + 1]].iter().sum())
+            .collect();
         // S = A + A^T with A_ij = L_i F0_ij / 2. A^T is not built: the
         // pattern of F0 is mostly symmetric, so A_ji is looked up in row j,
         // and only the entries of A whose transpose A lacks are collected

@@ -170,6 +170,26 @@ impl Coverage {
         true
     }
 
+    /// Whether piece `pi` is nearer than the owner of interval `i` (which
+    /// it overlaps), on the ray through the middle of their overlap; `near`
+    /// is how near the piece comes to the query point, less a margin (see
+    /// [`Coverage::insert`]).
+    #[inline]
+    fn wins(&self, pieces: &[Piece], pi: u32, near: f64, i: usize) -> bool {
+        let (pc, v) = (&pieces[pi as usize], &self.iv[i]);
+        if v.owner == NONE {
+            return true;
+        }
+        if v.far < near {
+            return false;
+        }
+        let (lo, hi) = (self.start(i).max(pc.ka), v.end.min(pc.kb));
+        let (du, dv) = diamond_dir(0.5 * (lo + hi));
+        let o = &pieces[v.owner as usize];
+        let (tp, to) = (pc.t(du, dv), o.t(du, dv));
+        tp < to || (tp == to && pi < v.owner)
+    }
+
     /// Lets piece `pi` take every part of `[ka, kb)` where it is nearer
     /// (seen from `p`).
     fn insert(&mut self, pieces: &[Piece], pi: u32, p: [f64; 2]) {
@@ -185,18 +205,7 @@ impl Coverage {
         let mut i = first;
         let mut wins_any = false;
         while i < n && self.start(i) < pc.kb {
-            let old = self.iv[i].owner;
-            if old != NONE && self.iv[i].far < near {
-                i += 1;
-                continue;
-            }
-            let (lo, hi) = (self.start(i).max(pc.ka), self.iv[i].end.min(pc.kb));
-            if old == NONE || {
-                let (du, dv) = diamond_dir(0.5 * (lo + hi));
-                let o = &pieces[old as usize];
-                let (tp, to) = (pc.t(du, dv), o.t(du, dv));
-                tp < to || (tp == to && pi < old)
-            } {
+            if self.wins(pieces, pi, near, i) {
                 wins_any = true;
                 break;
             }
@@ -220,14 +229,7 @@ impl Coverage {
         while i < n && self.start(i) < pc.kb {
             let (s, v) = (self.start(i), self.iv[i]);
             let (lo, hi) = (s.max(pc.ka), v.end.min(pc.kb));
-            let keeps = v.owner != NONE && v.far < near;
-            let wins = !keeps
-                && (v.owner == NONE || {
-                    let (du, dv) = diamond_dir(0.5 * (lo + hi));
-                    let o = &pieces[v.owner as usize];
-                    let (tp, to) = (pc.t(du, dv), o.t(du, dv));
-                    tp < to || (tp == to && pi < v.owner)
-                });
+            let wins = self.wins(pieces, pi, near, i);
             if lo > s {
                 self.scratch.push(Iv {
                     end: lo,
