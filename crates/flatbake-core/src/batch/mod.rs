@@ -184,6 +184,8 @@ impl BatchOptions {
         settings.responses = self.layers || self.cache;
         settings.max_memory = self.max_memory;
         settings.directional = self.directional;
+        // Nothing in a batch reads them after the solve.
+        settings.keep_form_factors = false;
         settings
     }
 
