@@ -159,9 +159,22 @@ pub(super) fn gather(
             .filter(|p| test(p, &values, &signature))
             .count();
         if (pass as f64) < MIN_PASSED * trial.len() as f64 {
-            drop((values, moments, signature, state, exact_too, lists));
-            drop(at);
-            return local::gather_all(exact, pixels, spacing);
+            // Every other pixel is gathered as without the lattice; the
+            // trial's probes keep their light, and its anchors their lists.
+            drop((signature, exact_too));
+            let rest: Vec<usize> = (0..pixels.len()).filter(|&i| state[i] == 0).collect();
+            take(
+                &mut lists,
+                &rest,
+                None,
+                (&mut values, &mut moments, &mut [], &mut state),
+            );
+            return Gather {
+                values,
+                moments,
+                stats,
+                counts,
+            };
         }
     }
     // Top-left corners of the cells that passed at the previous spacing.
