@@ -736,6 +736,28 @@ fn the_memory_estimate_counts_form_factor_entries_from_a_sample() {
     }
 }
 
+/// `Settings::keep_form_factors` decides only whether the form factors are
+/// handed back: off (as a batch bakes), they are freed before the gather
+/// and the lightmap and the report's entry count are the same.
+#[test]
+fn dropping_the_form_factors_changes_no_output() {
+    let level = resolved(&default_palette());
+    let kept = bake::bake(&level, &Settings::new(Quality::Normal), &|_| {}).expect("bakes");
+    let ff = kept.form_factors.as_ref().expect("kept by default");
+    assert!(ff.nnz() > 0);
+    let mut settings = Settings::new(Quality::Normal);
+    settings.keep_form_factors = false;
+    let dropped = bake::bake(&level, &settings, &|_| {}).expect("bakes");
+    assert!(dropped.form_factors.is_none());
+    assert_eq!(dropped.lightmap.rgb, kept.lightmap.rgb);
+    assert_eq!(dropped.radiosity, kept.radiosity);
+    assert_eq!(
+        dropped.report.counts.form_factor_entries,
+        kept.report.counts.form_factor_entries
+    );
+    assert_eq!(dropped.report.counts.form_factor_entries, ff.nnz());
+}
+
 /// A bake whose estimate is above `Settings::max_memory` is refused before
 /// its form factors, with the estimate; at the estimate itself it bakes,
 /// and the report records the same estimate.
