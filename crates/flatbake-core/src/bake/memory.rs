@@ -16,17 +16,19 @@
 //!   tree; counted as [`PER_PATCH`];
 //! - per entry of the patches' merged form-factor rows (a patch and a patch
 //!   that some quadrature point of it sees): at the peak of the form
-//!   factors, the raw rows and the slope rows (12 bytes each) beside the
-//!   symmetric matrix built from them (12 bytes per entry of it, as many as
-//!   the raw rows where their pattern is symmetric) and the entries whose
-//!   transpose is missing (8 bytes each): 36 bytes per entry on most
-//!   levels, 45 on a level of one-pixel dots, where they are 30 % of the
-//!   matrix (the points' own rows are merged as soon as each patch's last
-//!   point is visited, so they are never all kept; the freed merged rows
-//!   are handed back to the system; the solver reads the matrix in place);
-//!   counted at 50 bytes for a margin (the 640 px dots: estimated 13.2 GB,
-//!   peak 11.62 GB) as [`PER_FACTOR_ENTRY`], and estimated from the exact
-//!   visibility of a sample of patches ([`transport::estimate_entries`]);
+//!   factors, the slope rows (12 bytes) and the raw rows' values (8 bytes:
+//!   their pattern is the slope rows') beside the symmetric matrix built
+//!   from them (12 bytes per entry of it, as many as the raw rows where
+//!   their pattern is symmetric) and the entries whose transpose is
+//!   missing (8 bytes each): 32 bytes per entry on most levels, about 41 on
+//!   a level of one-pixel dots, where they are 30 % of the matrix (the
+//!   points' own rows are merged as soon as each patch's last point is
+//!   visited, so they are never all kept; the freed merged rows are handed
+//!   back to the system; the solver reads the matrix in place); counted at
+//!   50 bytes for a margin (the dots cut to 384 px: estimated 3.05 GB,
+//!   peak 2.40 GB) as [`PER_FACTOR_ENTRY`],
+//!   and estimated from the exact visibility of a sample of patches
+//!   ([`transport::estimate_entries`]);
 //! - the dense fallback solve of systems up to the solver's fallback size,
 //!   8 bytes per matrix entry;
 //! - per-emitter responses (light layers, relight caches): 12 bytes per

@@ -100,7 +100,7 @@ impl FormFactors {
 
     /// Builds `S` and `D` from raw rows `F0` (each sorted by column) and
     /// patch lengths.
-    pub fn from_raw_rows(raw: RawRows, len: &[f64]) -> FormFactors {
+    pub fn from_raw_rows(raw: RawRows<'_>, len: &[f64]) -> FormFactors {
         let n = raw.row_ptr.len().saturating_sub(1);
         let coverage: Vec<f64> = (0..n)
             .map(|i| raw.val[raw.row_ptr[i]..raw.row_ptr[i + 1]].iter().sum())
@@ -220,12 +220,14 @@ impl FormFactors {
 
 /// The raw rows `F0` of the form factors, one per patch (CSR, each row
 /// sorted by column), from which [`FormFactors::from_raw_rows`] builds `S`.
-#[derive(Clone, Debug, Default)]
-pub struct RawRows {
+/// Their pattern is borrowed: it is that of the [`SlopeRows`], which keep it
+/// (4 bytes per entry not stored twice).
+#[derive(Clone, Debug)]
+pub struct RawRows<'a> {
     /// Row starts.
-    pub row_ptr: Vec<usize>,
+    pub row_ptr: &'a [usize],
     /// Patch of each entry.
-    pub col: Vec<u32>,
+    pub col: &'a [u32],
     /// `F0` of each entry.
     pub val: Vec<f64>,
 }
@@ -447,8 +449,9 @@ pub fn form_factors(
                 .expect("not merged yet");
         }
     }
-    // One pass, patch by patch: the slope rows and the F0 rows into one
-    // table each, each triple row freed as soon as it is split.
+    // One pass, patch by patch: the slope rows (pattern and values) and
+    // F0's values (same pattern) into one table each, each triple row freed
+    // as soon as it is split.
     let mut slopes = SlopeRows {
         q,
         row_ptr: Vec::with_capacity(n + 1),
@@ -459,14 +462,8 @@ pub fn form_factors(
     slopes.col.reserve_exact(entries);
     slopes.val.reserve_exact(entries);
     slopes.row_ptr.push(0);
-    let mut raw = RawRows {
-        row_ptr: Vec::with_capacity(n + 1),
-        col: Vec::new(),
-        val: Vec::new(),
-    };
-    raw.col.reserve_exact(entries);
-    raw.val.reserve_exact(entries);
-    raw.row_ptr.push(0);
+    // `F0`'s values; its pattern is the slope rows'.
+    let mut raw_val: Vec<f64> = Vec::with_capacity(entries);
     // The merged rows are freed as they are copied, in patch order, not in
     // the order the threads allocated them: the freed memory is scattered
     // over the heaps, which the allocator then keeps. Handed back every
@@ -480,12 +477,15 @@ pub fn form_factors(
         slopes.col.extend(row.iter().map(|e| e.0));
         slopes.val.extend(row.iter().map(|e| e.2));
         slopes.row_ptr.push(slopes.col.len());
-        raw.col.extend(row.iter().map(|e| e.0));
-        raw.val.extend(row.iter().map(|e| e.1));
-        raw.row_ptr.push(raw.col.len());
+        raw_val.extend(row.iter().map(|e| e.1));
     }
     release_freed_memory();
     let len: Vec<f64> = (0..n).map(|p| patches.length(p)).collect();
+    let raw = RawRows {
+        row_ptr: &slopes.row_ptr,
+        col: &slopes.col,
+        val: raw_val,
+    };
     let ff = FormFactors::from_raw_rows(raw, &len);
     (ff, slopes, stats)
 }
@@ -544,15 +544,17 @@ mod tests {
             &[(0, 0.1), (1, 0.3)],
         ];
         let len = [1.0, 2.0, 0.5, 3.0, 1.5];
-        let mut raw = RawRows {
-            row_ptr: vec![0],
-            ..RawRows::default()
-        };
+        let (mut row_ptr, mut col, mut val) = (vec![0], Vec::new(), Vec::new());
         for r in rows {
-            raw.col.extend(r.iter().map(|e| e.0));
-            raw.val.extend(r.iter().map(|e| e.1));
-            raw.row_ptr.push(raw.col.len());
+            col.extend(r.iter().map(|e| e.0));
+            val.extend(r.iter().map(|e| e.1));
+            row_ptr.push(col.len());
         }
+        let raw = RawRows {
+            row_ptr: &row_ptr,
+            col: &col,
+            val,
+        };
         let a = |i: usize, j: usize| {
             rows[i]
                 .iter()
