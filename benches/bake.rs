@@ -50,7 +50,9 @@ fn sizes(c: &mut Criterion) {
         let lens: Vec<f64> = geo.edges.iter().map(|e| e.len()).collect();
         let reach = Reach::new(&lens, &vec![1.0; lens.len()], f, 0.5, s.knobs.reach_bound);
         g.bench_with_input(BenchmarkId::new("form_factors", size), &geo, |b, geo| {
-            b.iter(|| transport::form_factors(geo, &patches, s.knobs.quad, f, &reach))
+            b.iter(|| {
+                transport::form_factors(geo, &patches, s.knobs.quad, f, &reach, s.knobs.reach_bound)
+            })
         });
         g.bench_with_input(BenchmarkId::new("bake", size), &lv, |b, lv| {
             b.iter(|| bake(lv, &s, &|_| {}).expect("bench levels bake"))

@@ -62,6 +62,7 @@ fn rows_sum_to_one_in_a_closed_room_and_reciprocity_holds() {
             k.quad,
             None,
             &flatbake_core::transport::kernel::Reach::unlimited(g.edges.len()),
+            k.reach_bound,
         );
         let mut worst: f64 = 0.0;
         for i in 0..p.len() {

@@ -271,7 +271,7 @@ fn hard_system() -> (flatbake_core::transport::FormFactors, Vec<f64>, Vec<f64>) 
     let g = trace(&lvl);
     let patches = Patches::new(&g, 0.5);
     let reach = Reach::unlimited(g.edges.len());
-    let (ff, _, _) = form_factors(&g, &patches, 3, None, &reach);
+    let (ff, _, _) = form_factors(&g, &patches, 3, None, &reach, 0.0);
     let mat = |p: usize| &lvl.materials[g.edges[patches.edge[p] as usize].material as usize];
     let rho = (0..patches.len()).map(|p| mat(p).reflectance[0]).collect();
     let e = (0..patches.len()).map(|p| mat(p).emission[0]).collect();
@@ -1070,6 +1070,7 @@ fn a_singular_system_is_an_error_not_zeros() {
         val: vec![1.0, 1.0],
         dlen: vec![1.0, 1.0],
         coverage: vec![0.5, 0.5],
+        dropped: 0,
     };
     let (rho, e) = (vec![1.0, 1.0], vec![1.0, 0.0]);
     match solve_channel(&ff, &rho, &e, &SolveSettings::default()) {

@@ -707,8 +707,14 @@ fn the_memory_estimate_counts_form_factor_entries_from_a_sample() {
             0.5,
             knobs.reach_bound,
         );
-        let (_, slopes, _) =
-            transport::form_factors(&scene.geometry, &scene.patches, knobs.quad, falloff, &reach);
+        let (_, slopes, _) = transport::form_factors(
+            &scene.geometry,
+            &scene.patches,
+            knobs.quad,
+            falloff,
+            &reach,
+            knobs.reach_bound,
+        );
         let exact = slopes.col.len() as u64;
         let n = scene.patch_count();
         let every = transport::estimate_entries(
@@ -717,6 +723,7 @@ fn the_memory_estimate_counts_form_factor_entries_from_a_sample() {
             knobs.quad,
             falloff,
             &reach,
+            knobs.reach_bound,
             n,
         );
         assert_eq!(every, exact, "every patch sampled: the exact count");
@@ -726,6 +733,7 @@ fn the_memory_estimate_counts_form_factor_entries_from_a_sample() {
             knobs.quad,
             falloff,
             &reach,
+            knobs.reach_bound,
             64,
         );
         let ratio = sampled as f64 / exact as f64;

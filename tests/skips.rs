@@ -359,3 +359,59 @@ fn draft_interpolates_smooth_floor_and_stays_near_its_exact_gather() {
         "pixels"
     ));
 }
+
+/// Slivers (docs/transport.md, Slivers): on a field of one-pixel dots each
+/// patch's smallest form factors are left out, the row of `F` keeps the sum
+/// of the whole raw row, `D F` stays symmetric, and the light moves by far
+/// less than the bound allows; an exhaustive bake leaves none out.
+#[test]
+fn slivers_keep_row_sums_and_reciprocity_and_move_little_light() {
+    use flatbake_core::bake::Scene;
+    use flatbake_core::transport::{form_factors, kernel::Reach};
+    let (level, _) = flatbake_synth::dots(96, 5).level().expect("palette");
+    let knobs = Quality::Normal.knobs();
+    let scene = Scene::new(&level, &knobs, false);
+    let (g, p) = (&scene.geometry, &scene.patches);
+    let reach = Reach::unlimited(g.edges.len());
+    let (whole, _, _) = form_factors(g, p, knobs.quad, None, &reach, 0.0);
+    let (thin, _, _) = form_factors(g, p, knobs.quad, None, &reach, knobs.reach_bound);
+    assert_eq!(whole.dropped, 0);
+    assert!(thin.dropped > 0, "a dots field has slivers");
+    assert!(thin.nnz() < whole.nnz());
+    let mut worst: f64 = 0.0;
+    for i in 0..p.len() {
+        let sum = |f: &flatbake_core::transport::FormFactors| f.row(i).map(|e| e.1).sum::<f64>();
+        let (a, b) = (sum(&whole), sum(&thin));
+        assert!((a - b).abs() <= 1e-12 * a.max(1.0), "row {i}: {a} vs {b}");
+        for (j, f) in thin.row(i) {
+            let (x, y) = (thin.dlen[i] * f, thin.dlen[j] * thin.get(j, i));
+            assert!(
+                (x - y).abs() <= 1e-12 * x.max(y),
+                "D F at ({i}, {j}): {x} vs {y}"
+            );
+        }
+        // How far the row moved, as a share of its sum: what it left out,
+        // what the rows it lost transposes to left out, and the share both
+        // give the rest.
+        let moved: f64 = whole.row(i).map(|(j, f)| (f - thin.get(i, j)).abs()).sum();
+        worst = worst.max(moved / sum(&whole).max(1e-300));
+    }
+    eprintln!(
+        "slivers: {} of {} entries left out, rows moved by at most {worst:e} of their sums",
+        thin.dropped,
+        whole.nnz()
+    );
+    assert!(
+        worst < 100.0 * knobs.reach_bound,
+        "a row moved by {worst:e} of its sum"
+    );
+    let s = Settings::new(Quality::Normal);
+    let b = bake(&level, &s, &|_| {}).expect("bakes");
+    assert!(skipped(&b, "slivers"), "{:?}", b.report.skipped);
+    let mut none = s.clone();
+    none.knobs.reach_bound = 0.0;
+    let full = bake(&level, &none, &|_| {}).expect("bakes");
+    assert!(!skipped(&full, "slivers"));
+    let d = rel_rms(&level, &b, &full);
+    assert!(d < 1e-4, "slivers moved the light by {d:e} relative RMS");
+}

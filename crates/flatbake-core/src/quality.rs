@@ -42,6 +42,9 @@ pub struct Knobs {
     /// With falloff: pixels and patches whose distance to an emitting or
     /// reflecting edge makes its largest possible contribution smaller than
     /// this fraction of the level's brightest emission are not gathered.
+    /// With or without: the share of a patch's form-factor row that the
+    /// smallest entries left out of it may carry, their part shared by the
+    /// rest ([`crate::transport::form_factors`]).
     pub reach_bound: f64,
     /// Relative tolerance of the interpolated gather ([`crate::gather::lattice`]):
     /// floor light is gathered exactly at probe pixels of 8 and 4 px cells and

@@ -58,8 +58,20 @@ pub fn form_factors(ctx: &Ctx, scene: &Scene, plan: &mut Plan, log: &mut Log) ->
                 ctx.settings.knobs.quad,
                 ctx.falloff,
                 &reach,
+                ctx.reach_bound,
             );
             out.culled_pairs += stats.culled_pairs;
+            if ff.dropped > 0 {
+                log.skip(
+                    "slivers",
+                    format!(
+                        "{} of {} form-factor entries left out: each patch's smallest, together at most {:e} of what its row sends, their part shared by the rest of the row",
+                        ff.dropped,
+                        ff.dropped as usize + ff.nnz(),
+                        ctx.reach_bound
+                    ),
+                );
+            }
             let lit = sees_light(scene, plan, &|i| ff.row(i).collect());
             out.form_factors = Some(ff);
             out.slope_rows = Some(slopes);

@@ -91,6 +91,7 @@ impl MemoryEstimate {
                 quad,
                 ctx.falloff,
                 &reach,
+                bound,
                 SAMPLED_PATCHES,
             )
         } else {

@@ -68,8 +68,12 @@ pub struct FormFactors {
     /// Effective lengths `D_i`.
     pub dlen: Vec<f64>,
     /// Raw row sums `t_i` of F: the fraction of patch `i`'s light that lands
-    /// on some patch (1 in a closed room without falloff).
+    /// on some patch (1 in a closed room without falloff), slivers included
+    /// ([`form_factors`]).
     pub coverage: Vec<f64>,
+    /// Entries of the patches' merged rows left out as slivers.
+    #[serde(default)]
+    pub dropped: u64,
 }
 
 impl FormFactors {
@@ -99,12 +103,12 @@ impl FormFactors {
     }
 
     /// Builds `S` and `D` from raw rows `F0` (each sorted by column) and
-    /// patch lengths.
+    /// patch lengths. Each row of `F` sums to its raw row's `sum`: where
+    /// slivers were left out of the raw row, its other entries share their
+    /// part.
     pub fn from_raw_rows(raw: RawRows<'_>, len: &[f64]) -> FormFactors {
         let n = raw.row_ptr.len().saturating_sub(1);
-        let coverage: Vec<f64> = (0..n)
-            .map(|i| raw.val[raw.row_ptr[i]..raw.row_ptr[i + 1]].iter().sum())
-            .collect();
+        let coverage = raw.sum;
         // S = A + A^T with A_ij = L_i F0_ij / 2. A^T is not built: the
         // pattern of F0 is mostly symmetric, so A_ji is looked up in row j,
         // and only the entries of A whose transpose A lacks are collected
@@ -189,7 +193,7 @@ impl FormFactors {
             }
             row_ptr.push(col.len());
         }
-        drop((cursor, extras, raw));
+        drop((cursor, extras, raw.val));
         let mut coverage = coverage;
         let dlen = (0..n)
             .map(|i| {
@@ -214,6 +218,7 @@ impl FormFactors {
             val,
             dlen,
             coverage,
+            dropped: 0,
         }
     }
 }
@@ -230,6 +235,8 @@ pub struct RawRows<'a> {
     pub col: &'a [u32],
     /// `F0` of each entry.
     pub val: Vec<f64>,
+    /// Each row's sum before slivers were left out of it.
+    pub sum: Vec<f64>,
 }
 
 /// What the quadrature points of each patch say of its light's profile:
@@ -358,10 +365,10 @@ fn visit_point_rows(
 
 /// An estimate of how many entries [`form_factors`] would store per patch
 /// (its merged row: one entry per patch that any of its quadrature points
-/// sees), from the exact visibility of at most `samples` patches spread
-/// evenly over the patch list: their mean times the number of patches.
-/// Counts only, so it costs a small part of the form factors themselves;
-/// it lets a bake that would need more memory than the machine has be
+/// sees, less its slivers), from the exact visibility of at most `samples`
+/// patches spread evenly over the patch list: their mean times the number
+/// of patches. It costs a small part of the form factors themselves; it
+/// lets a bake that would need more memory than the machine has be
 /// refused before it starts.
 pub fn estimate_entries(
     geometry: &Geometry,
@@ -369,31 +376,30 @@ pub fn estimate_entries(
     quad: usize,
     falloff: Option<Falloff>,
     reach: &Reach,
+    sliver: f64,
     samples: usize,
 ) -> u64 {
     let n = patches.len();
     if n == 0 || samples == 0 {
         return 0;
     }
-    let (xs, _) = gauss_legendre(quad);
+    let (xs, ws) = gauss_legendre(quad);
     let q = xs.len();
     let k = samples.min(n);
     // Patch i * n / k for i < k: evenly spread, deterministic.
     let picked: Vec<usize> = (0..k).map(|i| i * n / k).collect();
-    let seen: Vec<Mutex<Vec<u32>>> = (0..k).map(|_| Default::default()).collect();
+    // Per sampled patch, its points' rows (in point order).
+    let seen: Vec<Mutex<Vec<PointRow>>> = (0..k).map(|_| Mutex::new(vec![Vec::new(); q])).collect();
     visit_point_rows(geometry, patches, xs, &picked, falloff, reach, &|i, row| {
-        let mut s = seen[i / q]
+        seen[i / q]
             .lock()
-            .expect("no panics while holding the lock");
-        s.extend(row.iter().map(|e| e.0));
+            .expect("no panics while holding the lock")[i % q] = row;
     });
     let counted: usize = seen
         .into_iter()
         .map(|s| {
-            let mut s = s.into_inner().expect("no panics while holding the lock");
-            s.sort_unstable();
-            s.dedup();
-            s.len()
+            let rows = s.into_inner().expect("no panics while holding the lock");
+            merge_points(&rows, xs, ws, sliver).0.len()
         })
         .sum();
     (counted as f64 * n as f64 / k as f64).ceil() as u64
@@ -401,6 +407,13 @@ pub fn estimate_entries(
 
 /// Computes the form factors with `quad` Gauss-Legendre points per patch,
 /// and the slope rows that the points' rows leave behind.
+///
+/// A patch's smallest factors, together at most `sliver` of its row's sum,
+/// are left out of its row, and the rest of the row shares their part (the
+/// row's sum is kept: no light is lost). On a level of one-pixel dots,
+/// each quadrature point sees slivers of hundreds of dots through the gaps
+/// between nearer ones: at `1e-5` half the entries go (see
+/// docs/transport.md, Slivers).
 ///
 /// Each point's row is held only until the last point of its patch is
 /// visited (the points of a patch are neighbours, so they are visited close
@@ -413,13 +426,15 @@ pub fn form_factors(
     quad: usize,
     falloff: Option<Falloff>,
     reach: &Reach,
+    sliver: f64,
 ) -> (FormFactors, SlopeRows, VisitStats) {
     let (xs, ws) = gauss_legendre(quad);
     let q = xs.len();
     let n = patches.len();
     let pending: Vec<Mutex<Arrived>> = (0..n).map(|_| Default::default()).collect();
-    // Per patch, once merged: `(j, F0_pj, G_pj)`.
-    let merged: Vec<OnceLock<Vec<(u32, f64, f64)>>> = (0..n).map(|_| OnceLock::new()).collect();
+    // Per patch, once merged: `(j, F0_pj, G_pj)`, the raw row's sum and
+    // how many slivers left it.
+    let merged: Vec<OnceLock<Merged>> = (0..n).map(|_| OnceLock::new()).collect();
     let all: Vec<usize> = (0..n).collect();
     let stats = visit_point_rows(geometry, patches, xs, &all, falloff, reach, &|i, row| {
         let (p, k) = (i / q, i % q);
@@ -434,7 +449,7 @@ pub fn form_factors(
             (*arrived == q).then(|| std::mem::take(rows))
         };
         if let Some(rows) = complete {
-            let row = merge_points(&rows, xs, ws);
+            let row = merge_points(&rows, xs, ws, sliver);
             merged[p].set(row).expect("each patch is merged once");
         }
     });
@@ -445,7 +460,7 @@ pub fn form_factors(
         if merged[p].get().is_none() {
             rows.resize_with(q, Vec::new);
             merged[p]
-                .set(merge_points(&rows, xs, ws))
+                .set(merge_points(&rows, xs, ws, sliver))
                 .expect("not merged yet");
         }
     }
@@ -458,12 +473,16 @@ pub fn form_factors(
         col: Vec::new(),
         val: Vec::new(),
     };
-    let entries = merged.iter().map(|m| m.get().map_or(0, Vec::len)).sum();
+    let entries = merged
+        .iter()
+        .map(|m| m.get().map_or(0, |m| m.0.len()))
+        .sum();
     slopes.col.reserve_exact(entries);
     slopes.val.reserve_exact(entries);
     slopes.row_ptr.push(0);
     // `F0`'s values; its pattern is the slope rows'.
     let mut raw_val: Vec<f64> = Vec::with_capacity(entries);
+    let (mut sum, mut dropped) = (Vec::with_capacity(n), 0);
     // The merged rows are freed as they are copied, in patch order, not in
     // the order the threads allocated them: the freed memory is scattered
     // over the heaps, which the allocator then keeps. Handed back every
@@ -473,7 +492,9 @@ pub fn form_factors(
         if p % every == every - 1 {
             release_freed_memory();
         }
-        let row = m.into_inner().unwrap_or_default();
+        let (row, s, d) = m.into_inner().unwrap_or_default();
+        sum.push(s);
+        dropped += d;
         slopes.col.extend(row.iter().map(|e| e.0));
         slopes.val.extend(row.iter().map(|e| e.2));
         slopes.row_ptr.push(slopes.col.len());
@@ -485,8 +506,10 @@ pub fn form_factors(
         row_ptr: &slopes.row_ptr,
         col: &slopes.col,
         val: raw_val,
+        sum,
     };
-    let ff = FormFactors::from_raw_rows(raw, &len);
+    let mut ff = FormFactors::from_raw_rows(raw, &len);
+    ff.dropped = dropped;
     (ff, slopes, stats)
 }
 
@@ -500,14 +523,24 @@ fn release_freed_memory() {
     }
 }
 
+/// One quadrature point's row: `(patch, K)` per patch it sees.
+type PointRow = Vec<(u32, f64)>;
+
 /// Per patch while its points are visited: how many have arrived, and
 /// their rows (in point order).
-type Arrived = (usize, Vec<Vec<(u32, f64)>>);
+type Arrived = (usize, Vec<PointRow>);
+
+/// A patch's merged row ([`merge_points`]), its sum before slivers were
+/// left out, and how many were.
+type Merged = (Vec<(u32, f64, f64)>, f64, u64);
 
 /// A patch's row from its points' rows (in point order, weights `ws` at
 /// abscissae `xs`): `(j, sum_k w_k K(x_k, j), sum_k w_k (x_k - 1/2) K(x_k, j))`
-/// sorted by patch `j`, each sum taken in point order, without slack.
-fn merge_points(rows: &[Vec<(u32, f64)>], xs: &[f64], ws: &[f64]) -> Vec<(u32, f64, f64)> {
+/// sorted by patch `j`, each sum taken in point order, without slack; less
+/// its slivers: the smallest entries (ties by patch), as many as sum to at
+/// most `sliver` of the row's sum. Returns the row, its sum before (in
+/// patch order) and how many entries were left out.
+fn merge_points(rows: &[Vec<(u32, f64)>], xs: &[f64], ws: &[f64], sliver: f64) -> Merged {
     let mut row: Vec<(u32, f64, f64)> = Vec::with_capacity(rows.iter().map(Vec::len).sum());
     for ((r, &x), &w) in rows.iter().zip(xs).zip(ws) {
         let t = w * (x - 0.5);
@@ -523,8 +556,30 @@ fn merge_points(rows: &[Vec<(u32, f64)>], xs: &[f64], ws: &[f64]) -> Vec<(u32, f
         }
         same
     });
+    let sum: f64 = row.iter().map(|e| e.1).sum();
+    let mut dropped = 0;
+    if sliver > 0.0 && row.len() > 1 {
+        let mut by_value: Vec<(f64, u32)> = row.iter().map(|e| (e.1, e.0)).collect();
+        by_value.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let (budget, mut spent) = (sliver * sum, 0.0);
+        // The largest patch of the smallest entries left out (ties: by patch).
+        let mut last = None;
+        for &(v, j) in &by_value {
+            if spent + v > budget {
+                break;
+            }
+            spent += v;
+            last = Some((v, j));
+        }
+        if let Some(last) = last {
+            let out = |e: &(u32, f64, f64)| (e.1, e.0) <= last;
+            let before = row.len();
+            row.retain(|e| !out(e));
+            dropped = (before - row.len()) as u64;
+        }
+    }
     row.shrink_to_fit();
-    row
+    (row, sum, dropped)
 }
 
 #[cfg(test)]
@@ -550,10 +605,12 @@ mod tests {
             val.extend(r.iter().map(|e| e.1));
             row_ptr.push(col.len());
         }
+        let sum = rows.iter().map(|r| r.iter().map(|e| e.1).sum()).collect();
         let raw = RawRows {
             row_ptr: &row_ptr,
             col: &col,
             val,
+            sum,
         };
         let a = |i: usize, j: usize| {
             rows[i]
