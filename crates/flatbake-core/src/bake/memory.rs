@@ -20,14 +20,16 @@
 //!   their pattern is the slope rows') beside the symmetric matrix built
 //!   from them (12 bytes per entry of it, as many as the raw rows where
 //!   their pattern is symmetric) and the entries whose transpose is
-//!   missing (8 bytes each): 32 bytes per entry on most levels, about 41 on
-//!   a level of one-pixel dots, where they are 30 % of the matrix (the
-//!   points' own rows are merged as soon as each patch's last point is
-//!   visited, so they are never all kept; the freed merged rows are handed
-//!   back to the system; the solver reads the matrix in place); counted at
-//!   50 bytes for a margin (the dots cut to 384 px: estimated 3.05 GB,
-//!   peak 2.40 GB) as [`PER_FACTOR_ENTRY`],
-//!   and estimated from the exact visibility of a sample of patches
+//!   missing (8 bytes each): 32 bytes per entry where the pattern is
+//!   symmetric, as it is on most levels and, once their slivers are left
+//!   out, on a level of one-pixel dots (before, a third of its matrix had
+//!   no transpose) (the points' own rows are merged as soon as each
+//!   patch's last point is visited, so they are never all kept; the freed
+//!   merged rows are handed back to the system; the solver reads the
+//!   matrix in place); counted at 50 bytes for a margin (the 640 px dots:
+//!   estimated 3.79 GB, peak 2.91 GB) as [`PER_FACTOR_ENTRY`], and
+//!   estimated from the exact visibility of a sample of patches, slivers
+//!   left out as the form factors leave them out
 //!   ([`transport::estimate_entries`]);
 //! - the dense fallback solve of systems up to the solver's fallback size,
 //!   8 bytes per matrix entry;
