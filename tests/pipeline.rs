@@ -717,25 +717,19 @@ fn the_memory_estimate_counts_form_factor_entries_from_a_sample() {
         );
         let exact = slopes.col.len() as u64;
         let n = scene.patch_count();
-        let every = transport::estimate_entries(
-            &scene.geometry,
-            &scene.patches,
-            knobs.quad,
-            falloff,
-            &reach,
-            knobs.reach_bound,
-            n,
-        );
-        assert_eq!(every, exact, "every patch sampled: the exact count");
-        let sampled = transport::estimate_entries(
-            &scene.geometry,
-            &scene.patches,
-            knobs.quad,
-            falloff,
-            &reach,
-            knobs.reach_bound,
-            64,
-        );
+        let estimate = |samples| {
+            transport::estimate_entries(
+                &scene.geometry,
+                &scene.patches,
+                knobs.quad,
+                falloff,
+                &reach,
+                knobs.reach_bound,
+                samples,
+            )
+        };
+        assert_eq!(estimate(n), exact, "every patch sampled: the exact count");
+        let sampled = estimate(64);
         let ratio = sampled as f64 / exact as f64;
         assert!(
             (1.0 - tolerance..=1.0 + tolerance).contains(&ratio),

@@ -562,7 +562,8 @@ fn merge_points(rows: &[Vec<(u32, f64)>], xs: &[f64], ws: &[f64], sliver: f64) -
         let mut by_value: Vec<(f64, u32)> = row.iter().map(|e| (e.1, e.0)).collect();
         by_value.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         let (budget, mut spent) = (sliver * sum, 0.0);
-        // The largest patch of the smallest entries left out (ties: by patch).
+        // The last entry to leave out, as (value, patch): every entry
+        // ordered before it goes too.
         let mut last = None;
         for &(v, j) in &by_value {
             if spent + v > budget {
