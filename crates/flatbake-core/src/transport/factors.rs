@@ -412,8 +412,8 @@ pub fn estimate_entries(
 /// are left out of its row, and the rest of the row shares their part (the
 /// row's sum is kept: no light is lost). On a level of one-pixel dots,
 /// each quadrature point sees slivers of hundreds of dots through the gaps
-/// between nearer ones: at `1e-5` half the entries go (see
-/// docs/transport.md, Slivers).
+/// between nearer ones: at `1e-5` 38 % of the entries go at 256 px, 66 %
+/// at 640 px (see docs/transport.md, Slivers).
 ///
 /// Each point's row is held only until the last point of its patch is
 /// visited (the points of a patch are neighbours, so they are visited close
