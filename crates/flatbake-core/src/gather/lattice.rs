@@ -135,7 +135,7 @@ pub(super) fn gather(
                 })
             })
     };
-    if !sweep_every {
+    let rejected = !sweep_every && {
         // The trial ([`TRIAL`]): its probes are gathered as any probe.
         let step = STEPS[0];
         let mut trial = Vec::new();
@@ -158,28 +158,15 @@ pub(super) fn gather(
             .iter()
             .filter(|p| test(p, &values, &signature))
             .count();
-        if (pass as f64) < MIN_PASSED * trial.len() as f64 {
-            // Every other pixel is gathered as without the lattice; the
-            // trial's probes keep their light, and its anchors their lists.
-            drop((signature, exact_too));
-            let rest: Vec<usize> = (0..pixels.len()).filter(|&i| state[i] == 0).collect();
-            take(
-                &mut lists,
-                &rest,
-                None,
-                (&mut values, &mut moments, &mut [], &mut state),
-            );
-            return Gather {
-                values,
-                moments,
-                stats,
-                counts,
-            };
-        }
-    }
+        (pass as f64) < MIN_PASSED * trial.len() as f64
+    };
+    // Where the trial rejects the lattice, no cell is tested: the last pass
+    // gathers every other pixel as without the lattice, the trial's probes
+    // keeping their light and its anchors their lists.
+    let steps: &[i32] = if rejected { &[] } else { &STEPS };
     // Top-left corners of the cells that passed at the previous spacing.
     let mut passed: std::collections::HashSet<[i32; 2]> = Default::default();
-    for (level, &step) in STEPS.iter().enumerate() {
+    for (level, &step) in steps.iter().enumerate() {
         let parent = (level > 0).then(|| STEPS[level - 1]);
         let mut cells = Vec::new();
         for y0 in (0..h - step).step_by(step as usize) {
