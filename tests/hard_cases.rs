@@ -1066,7 +1066,7 @@ fn jobs_1_and_jobs_2_write_identical_bytes() {
 fn a_singular_system_is_an_error_not_zeros() {
     let ff = flatbake_core::transport::FormFactors {
         row_ptr: vec![0, 1, 2],
-        col: vec![1, 0],
+        col: vec![1, 0].into(),
         val: vec![1.0, 1.0],
         dlen: vec![1.0, 1.0],
         coverage: vec![0.5, 0.5],

@@ -2,7 +2,7 @@
 //! symmetrised into `S` with effective lengths `D` (see the module docs of
 //! [`crate::transport`]).
 
-use std::sync::{Mutex, OnceLock};
+use std::sync::{Arc, Mutex, OnceLock};
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -56,13 +56,15 @@ pub fn point_factors(
 }
 
 /// The form factors, stored as the symmetric matrix `S` (full storage, CSR)
-/// and the effective lengths `D`: `F_ij = S_ij / D_i`.
+/// and the effective lengths `D`: `F_ij = S_ij / D_i`. Where the raw rows'
+/// pattern is already symmetric, `S` has that pattern and shares its
+/// columns with the [`SlopeRows`].
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct FormFactors {
     /// Row starts of `S` (CSR).
     pub row_ptr: Vec<usize>,
     /// Column (patch) of each stored entry.
-    pub col: Vec<u32>,
+    pub col: Arc<Vec<u32>>,
     /// `S_ij` of each stored entry.
     pub val: Vec<f64>,
     /// Effective lengths `D_i`.
@@ -109,91 +111,114 @@ impl FormFactors {
     pub fn from_raw_rows(raw: RawRows<'_>, len: &[f64]) -> FormFactors {
         let n = raw.row_ptr.len().saturating_sub(1);
         let coverage = raw.sum;
-        // S = A + A^T with A_ij = L_i F0_ij / 2. A^T is not built: the
-        // pattern of F0 is mostly symmetric, so A_ji is looked up in row j,
-        // and only the entries of A whose transpose A lacks are collected
-        // ("extras": S_ij = A_ji there; 30 % of S on a level of one-pixel
-        // dots, where points see slivers through the gaps, at most 6 % on
-        // the other classes). Rows are walked in order, so the
-        // look-ups into each row j come in increasing i: one cursor per row,
-        // moving forward only, finds them all in one pass over A.
+        // S = A + A^T with A_ij = L_i F0_ij / 2. A^T is not built: A_ji is
+        // looked up in row j. Rows are walked in order, so the look-ups
+        // into each row j come in increasing i: one cursor per row, moving
+        // forward only, finds them all in one pass over A. The entries of A
+        // whose transpose A lacks ("extras": S_ij = A_ji there) are
+        // collected on the way. Without extras (the pattern of F0 is
+        // symmetric: always, on the dots once their slivers are left out)
+        // S has F0's pattern, and is built in F0's values, in place.
         let mut cursor: Vec<usize> = raw.row_ptr[..n].to_vec();
         // Entry (j, i) of A, if any, consumed by row i's look-up in row j;
         // the entries passed over on the way have no transpose: `(i, j)`
         // of S, kept as that pair (its value is found again below).
         let mut extras: Vec<(u32, u32)> = Vec::new();
+        let col = &raw.col[..];
         let find = |cursor: &mut [usize], j: usize, i: u32, extras: Option<&mut Vec<_>>| {
             let end = raw.row_ptr[j + 1];
             let mut c = cursor[j];
             let mut passed = extras;
-            while c < end && raw.col[c] < i {
+            while c < end && col[c] < i {
                 if let Some(x) = passed.as_deref_mut() {
-                    x.push((raw.col[c], j as u32));
+                    x.push((col[c], j as u32));
                 }
                 c += 1;
             }
-            let hit = (c < end && raw.col[c] == i).then_some(c);
+            let hit = (c < end && col[c] == i).then_some(c);
             cursor[j] = c + usize::from(hit.is_some());
             hit
         };
         for i in 0..n {
             for k in raw.row_ptr[i]..raw.row_ptr[i + 1] {
-                find(
-                    &mut cursor,
-                    raw.col[k] as usize,
-                    i as u32,
-                    Some(&mut extras),
-                );
+                find(&mut cursor, col[k] as usize, i as u32, Some(&mut extras));
             }
         }
         for j in 0..n {
             for c in cursor[j]..raw.row_ptr[j + 1] {
-                extras.push((raw.col[c], j as u32));
+                extras.push((col[c], j as u32));
             }
         }
-        extras.sort_unstable();
         cursor.copy_from_slice(&raw.row_ptr[..n]);
-        let entries = raw.col.len() + extras.len();
-        let mut row_ptr = Vec::with_capacity(n + 1);
-        let mut col = Vec::with_capacity(entries);
-        let mut val = Vec::with_capacity(entries);
-        row_ptr.push(0);
-        let mut x = 0;
-        for i in 0..n {
-            let (mut k, end) = (raw.row_ptr[i], raw.row_ptr[i + 1]);
-            loop {
-                let ca = if k < end { raw.col[k] } else { u32::MAX };
-                let cx = match extras.get(x) {
-                    Some(&(r, c)) if r as usize == i => c,
-                    _ => u32::MAX,
-                };
-                if ca == u32::MAX && cx == u32::MAX {
-                    break;
-                }
-                if ca < cx {
-                    let j = ca as usize;
-                    let a = 0.5 * len[i] * raw.val[k];
-                    col.push(ca);
-                    val.push(match find(&mut cursor, j, i as u32, None) {
-                        Some(p) => a + 0.5 * len[j] * raw.val[p],
-                        None => a,
-                    });
-                    k += 1;
-                } else {
-                    // An entry of A^T alone (the two never share a column):
-                    // A_ji, found by the same cursors, since the look-ups
-                    // into row j still come in increasing i.
-                    let j = cx as usize;
+        let (row_ptr, col, val) = if extras.is_empty() {
+            drop(extras);
+            // Each pair once, from the row of its lower patch: both entries
+            // get `a + b`, the same bits as `b + a`.
+            let mut val = raw.val;
+            for i in 0..n {
+                for k in raw.row_ptr[i]..raw.row_ptr[i + 1] {
+                    let j = col[k] as usize;
+                    if j < i {
+                        continue;
+                    }
+                    let a = 0.5 * len[i] * val[k];
+                    if j == i {
+                        val[k] = a + a;
+                        continue;
+                    }
                     let p = find(&mut cursor, j, i as u32, None)
-                        .expect("an entry without a transpose is in its row");
-                    col.push(cx);
-                    val.push(0.5 * len[j] * raw.val[p]);
-                    x += 1;
+                        .expect("a symmetric pattern has every transpose");
+                    let s = a + 0.5 * len[j] * val[p];
+                    val[k] = s;
+                    val[p] = s;
                 }
             }
-            row_ptr.push(col.len());
-        }
-        drop((cursor, extras, raw.val));
+            (raw.row_ptr.to_vec(), Arc::clone(raw.col), val)
+        } else {
+            extras.sort_unstable();
+            let entries = col.len() + extras.len();
+            let mut row_ptr = Vec::with_capacity(n + 1);
+            let (mut s_col, mut val) = (Vec::with_capacity(entries), Vec::with_capacity(entries));
+            row_ptr.push(0);
+            let mut x = 0;
+            for i in 0..n {
+                let (mut k, end) = (raw.row_ptr[i], raw.row_ptr[i + 1]);
+                loop {
+                    let ca = if k < end { col[k] } else { u32::MAX };
+                    let cx = match extras.get(x) {
+                        Some(&(r, c)) if r as usize == i => c,
+                        _ => u32::MAX,
+                    };
+                    if ca == u32::MAX && cx == u32::MAX {
+                        break;
+                    }
+                    if ca < cx {
+                        let j = ca as usize;
+                        let a = 0.5 * len[i] * raw.val[k];
+                        s_col.push(ca);
+                        val.push(match find(&mut cursor, j, i as u32, None) {
+                            Some(p) => a + 0.5 * len[j] * raw.val[p],
+                            None => a,
+                        });
+                        k += 1;
+                    } else {
+                        // An entry of A^T alone (the two never share a
+                        // column): A_ji, found by the same cursors, since
+                        // the look-ups into row j still come in increasing i.
+                        let j = cx as usize;
+                        let p = find(&mut cursor, j, i as u32, None)
+                            .expect("an entry without a transpose is in its row");
+                        s_col.push(cx);
+                        val.push(0.5 * len[j] * raw.val[p]);
+                        x += 1;
+                    }
+                }
+                row_ptr.push(s_col.len());
+            }
+            drop((extras, raw.val));
+            (row_ptr, Arc::new(s_col), val)
+        };
+        drop(cursor);
         let mut coverage = coverage;
         let dlen = (0..n)
             .map(|i| {
@@ -226,13 +251,14 @@ impl FormFactors {
 /// The raw rows `F0` of the form factors, one per patch (CSR, each row
 /// sorted by column), from which [`FormFactors::from_raw_rows`] builds `S`.
 /// Their pattern is borrowed: it is that of the [`SlopeRows`], which keep it
-/// (4 bytes per entry not stored twice).
+/// (4 bytes per entry not stored twice), and `S` shares it where it is
+/// symmetric.
 #[derive(Clone, Debug)]
 pub struct RawRows<'a> {
     /// Row starts.
     pub row_ptr: &'a [usize],
     /// Patch of each entry.
-    pub col: &'a [u32],
+    pub col: &'a Arc<Vec<u32>>,
     /// `F0` of each entry.
     pub val: Vec<f64>,
     /// Each row's sum before slivers were left out of it.
@@ -250,8 +276,9 @@ pub struct SlopeRows {
     pub q: usize,
     /// Row starts, one row per patch (CSR).
     pub row_ptr: Vec<usize>,
-    /// Patch of each entry.
-    pub col: Vec<u32>,
+    /// Patch of each entry (shared with [`FormFactors`] where the pattern
+    /// of `S` is the same).
+    pub col: Arc<Vec<u32>>,
     /// `G_pj` of each entry.
     pub val: Vec<f64>,
 }
@@ -467,19 +494,14 @@ pub fn form_factors(
     // One pass, patch by patch: the slope rows (pattern and values) and
     // F0's values (same pattern) into one table each, each triple row freed
     // as soon as it is split.
-    let mut slopes = SlopeRows {
-        q,
-        row_ptr: Vec::with_capacity(n + 1),
-        col: Vec::new(),
-        val: Vec::new(),
-    };
     let entries = merged
         .iter()
         .map(|m| m.get().map_or(0, |m| m.0.len()))
         .sum();
-    slopes.col.reserve_exact(entries);
-    slopes.val.reserve_exact(entries);
-    slopes.row_ptr.push(0);
+    let mut row_ptr = Vec::with_capacity(n + 1);
+    let mut col: Vec<u32> = Vec::with_capacity(entries);
+    let mut g_val: Vec<f64> = Vec::with_capacity(entries);
+    row_ptr.push(0);
     // `F0`'s values; its pattern is the slope rows'.
     let mut raw_val: Vec<f64> = Vec::with_capacity(entries);
     let (mut sum, mut dropped) = (Vec::with_capacity(n), 0);
@@ -495,12 +517,18 @@ pub fn form_factors(
         let (row, s, d) = m.into_inner().unwrap_or_default();
         sum.push(s);
         dropped += d;
-        slopes.col.extend(row.iter().map(|e| e.0));
-        slopes.val.extend(row.iter().map(|e| e.2));
-        slopes.row_ptr.push(slopes.col.len());
+        col.extend(row.iter().map(|e| e.0));
+        g_val.extend(row.iter().map(|e| e.2));
+        row_ptr.push(col.len());
         raw_val.extend(row.iter().map(|e| e.1));
     }
     release_freed_memory();
+    let slopes = SlopeRows {
+        q,
+        row_ptr,
+        col: Arc::new(col),
+        val: g_val,
+    };
     let len: Vec<f64> = (0..n).map(|p| patches.length(p)).collect();
     let raw = RawRows {
         row_ptr: &slopes.row_ptr,
@@ -587,19 +615,12 @@ fn merge_points(rows: &[Vec<(u32, f64)>], xs: &[f64], ws: &[f64], sliver: f64) -
 mod tests {
     use super::*;
 
-    /// `S = A + A^T` with `A_ij = L_i F0_ij / 2`, on a pattern with entries
-    /// whose transpose is missing (both ways), a diagonal entry, an empty
-    /// row and an empty column, against the definition.
-    #[test]
-    fn s_is_a_plus_its_transpose_on_an_asymmetric_pattern() {
-        let rows: [&[(u32, f64)]; 5] = [
-            &[(1, 0.25), (3, 0.125)],
-            &[(0, 0.5), (2, 0.0625), (4, 0.375)],
-            &[(2, 0.03125), (3, 0.2)],
-            &[],
-            &[(0, 0.1), (1, 0.3)],
-        ];
-        let len = [1.0, 2.0, 0.5, 3.0, 1.5];
+    /// Builds `S` from `rows` of `F0` and checks it against the definition
+    /// `S = A + A^T`, `A_ij = L_i F0_ij / 2`, entry by entry (bit for bit:
+    /// the two ways of building `S` add in the same order); returns it and
+    /// whether it shares the raw rows' columns.
+    fn s_against_the_definition(rows: &[&[(u32, f64)]], len: &[f64]) -> (FormFactors, bool) {
+        let n = rows.len();
         let (mut row_ptr, mut col, mut val) = (vec![0], Vec::new(), Vec::new());
         for r in rows {
             col.extend(r.iter().map(|e| e.0));
@@ -607,6 +628,7 @@ mod tests {
             row_ptr.push(col.len());
         }
         let sum = rows.iter().map(|r| r.iter().map(|e| e.1).sum()).collect();
+        let col = Arc::new(col);
         let raw = RawRows {
             row_ptr: &row_ptr,
             col: &col,
@@ -619,12 +641,12 @@ mod tests {
                 .find(|e| e.0 as usize == j)
                 .map(|e| 0.5 * len[i] * e.1)
         };
-        let ff = FormFactors::from_raw_rows(raw, &len);
-        for i in 0..5 {
+        let ff = FormFactors::from_raw_rows(raw, len);
+        for i in 0..n {
             let r = ff.row_ptr[i]..ff.row_ptr[i + 1];
             let cols = &ff.col[r.clone()];
             assert!(cols.windows(2).all(|w| w[0] < w[1]), "row {i} sorted");
-            for j in 0..5 {
+            for j in 0..n {
                 let want = match (a(i, j), a(j, i)) {
                     (None, None) => None,
                     (x, y) => Some(x.unwrap_or(0.0) + y.unwrap_or(0.0)),
@@ -636,8 +658,41 @@ mod tests {
                 assert_eq!(got, want, "S[{i}][{j}]");
             }
         }
+        let shared = Arc::ptr_eq(&ff.col, &col);
+        (ff, shared)
+    }
+
+    /// On a pattern with entries whose transpose is missing (both ways), a
+    /// diagonal entry, an empty row and an empty column, `S` has a pattern
+    /// of its own.
+    #[test]
+    fn s_is_a_plus_its_transpose_on_an_asymmetric_pattern() {
+        let rows: [&[(u32, f64)]; 5] = [
+            &[(1, 0.25), (3, 0.125)],
+            &[(0, 0.5), (2, 0.0625), (4, 0.375)],
+            &[(2, 0.03125), (3, 0.2)],
+            &[],
+            &[(0, 0.1), (1, 0.3)],
+        ];
+        let (ff, shared) = s_against_the_definition(&rows, &[1.0, 2.0, 0.5, 3.0, 1.5]);
+        assert!(!shared);
         // Row 3 sent nothing: its coverage is what it receives, per length.
         let s3: f64 = ff.val[ff.row_ptr[3]..ff.row_ptr[4]].iter().sum();
         assert!((ff.coverage[3] - s3 / 3.0).abs() < 1e-15);
+    }
+
+    /// On a symmetric pattern (with a diagonal entry and an empty row), `S`
+    /// is built in the raw rows' values and shares their columns.
+    #[test]
+    fn s_shares_a_symmetric_pattern() {
+        let rows: [&[(u32, f64)]; 5] = [
+            &[(1, 0.25), (3, 0.125), (4, 0.7)],
+            &[(0, 0.5), (1, 0.01), (3, 0.0625)],
+            &[],
+            &[(0, 0.1), (1, 0.3), (4, 0.2)],
+            &[(0, 0.3), (3, 0.15)],
+        ];
+        let (_, shared) = s_against_the_definition(&rows, &[1.0, 2.0, 0.5, 3.0, 1.5]);
+        assert!(shared);
     }
 }
