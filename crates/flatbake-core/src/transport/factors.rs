@@ -279,8 +279,12 @@ pub struct SlopeRows {
     /// Patch of each entry (shared with [`FormFactors`] where the pattern
     /// of `S` is the same).
     pub col: Arc<Vec<u32>>,
-    /// `G_pj` of each entry.
-    pub val: Vec<f64>,
+    /// `G_pj` of each entry, in single precision: it serves only the
+    /// slope, a first-order correction, where its rounding (a relative
+    /// 6e-8) moves no value of the 32-bit lightmap by more than its own
+    /// rounding (docs/transport.md, Floor gather). Four bytes per entry
+    /// less, at the form factors' peak.
+    pub val: Vec<f32>,
 }
 
 impl SlopeRows {
@@ -309,7 +313,7 @@ impl SlopeRows {
                 let h: f64 = self.col[r.clone()]
                     .iter()
                     .zip(&self.val[r])
-                    .map(|(&j, &v)| v * b[j as usize])
+                    .map(|(&j, &v)| f64::from(v) * b[j as usize])
                     .sum();
                 let num = e[p] * odd + rho[p] * h;
                 let len = patches.length(p);
@@ -500,7 +504,7 @@ pub fn form_factors(
         .sum();
     let mut row_ptr = Vec::with_capacity(n + 1);
     let mut col: Vec<u32> = Vec::with_capacity(entries);
-    let mut g_val: Vec<f64> = Vec::with_capacity(entries);
+    let mut g_val: Vec<f32> = Vec::with_capacity(entries);
     row_ptr.push(0);
     // `F0`'s values; its pattern is the slope rows'.
     let mut raw_val: Vec<f64> = Vec::with_capacity(entries);
@@ -560,14 +564,15 @@ type Arrived = (usize, Vec<PointRow>);
 
 /// A patch's merged row ([`merge_points`]), its sum before slivers were
 /// left out, and how many were.
-type Merged = (Vec<(u32, f64, f64)>, f64, u64);
+type Merged = (Vec<(u32, f64, f32)>, f64, u64);
 
 /// A patch's row from its points' rows (in point order, weights `ws` at
 /// abscissae `xs`): `(j, sum_k w_k K(x_k, j), sum_k w_k (x_k - 1/2) K(x_k, j))`
-/// sorted by patch `j`, each sum taken in point order, without slack; less
-/// its slivers: the smallest entries (ties by patch), as many as sum to at
-/// most `sliver` of the row's sum. Returns the row, its sum before (in
-/// patch order) and how many entries were left out.
+/// sorted by patch `j`, each sum taken in point order, the second kept in
+/// single precision ([`SlopeRows`]), without slack; less its slivers: the
+/// smallest entries (ties by patch), as many as sum to at most `sliver` of
+/// the row's sum. Returns the row, its sum before (in patch order) and how
+/// many entries were left out.
 fn merge_points(rows: &[Vec<(u32, f64)>], xs: &[f64], ws: &[f64], sliver: f64) -> Merged {
     let mut row: Vec<(u32, f64, f64)> = Vec::with_capacity(rows.iter().map(Vec::len).sum());
     for ((r, &x), &w) in rows.iter().zip(xs).zip(ws) {
@@ -585,14 +590,13 @@ fn merge_points(rows: &[Vec<(u32, f64)>], xs: &[f64], ws: &[f64], sliver: f64) -
         same
     });
     let sum: f64 = row.iter().map(|e| e.1).sum();
-    let mut dropped = 0;
+    let mut last = None;
     if sliver > 0.0 && row.len() > 1 {
         let mut by_value: Vec<(f64, u32)> = row.iter().map(|e| (e.1, e.0)).collect();
         by_value.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         let (budget, mut spent) = (sliver * sum, 0.0);
         // The last entry to leave out, as (value, patch): every entry
         // ordered before it goes too.
-        let mut last = None;
         for &(v, j) in &by_value {
             if spent + v > budget {
                 break;
@@ -600,15 +604,16 @@ fn merge_points(rows: &[Vec<(u32, f64)>], xs: &[f64], ws: &[f64], sliver: f64) -
             spent += v;
             last = Some((v, j));
         }
-        if let Some(last) = last {
-            let out = |e: &(u32, f64, f64)| (e.1, e.0) <= last;
-            let before = row.len();
-            row.retain(|e| !out(e));
-            dropped = (before - row.len()) as u64;
-        }
     }
-    row.shrink_to_fit();
-    (row, sum, dropped)
+    let out = |e: &&(u32, f64, f64)| last.is_some_and(|last| (e.1, e.0) <= last);
+    let dropped = row.iter().filter(out).count();
+    let mut kept = Vec::with_capacity(row.len() - dropped);
+    kept.extend(
+        row.iter()
+            .filter(|e| !out(e))
+            .map(|&(j, f, g)| (j, f, g as f32)),
+    );
+    (kept, sum, dropped as u64)
 }
 
 #[cfg(test)]
