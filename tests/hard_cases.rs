@@ -1071,6 +1071,7 @@ fn a_singular_system_is_an_error_not_zeros() {
         dlen: vec![1.0, 1.0],
         coverage: vec![0.5, 0.5],
         dropped: 0,
+        one_sided: 0,
     };
     let (rho, e) = (vec![1.0, 1.0], vec![1.0, 0.0]);
     match solve_channel(&ff, &rho, &e, &SolveSettings::default()) {

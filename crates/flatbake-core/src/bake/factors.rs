@@ -67,7 +67,7 @@ pub fn form_factors(ctx: &Ctx, scene: &Scene, plan: &mut Plan, log: &mut Log) ->
                     format!(
                         "{} of {} form-factor entries left out: each patch's smallest, together at most {:e} of what its row sends, their part shared by the rest of the row",
                         ff.dropped,
-                        ff.dropped as usize + slopes.col.len(),
+                        ff.dropped + ff.nnz() as u64 - ff.one_sided,
                         ctx.reach_bound
                     ),
                 );

@@ -15,19 +15,18 @@
 //! - per patch: materials, radiosity, solver vectors, slopes and the patch
 //!   tree; counted as [`PER_PATCH`];
 //! - per entry of the patches' merged form-factor rows (a patch and a patch
-//!   that some quadrature point of it sees): at the peak of the form
-//!   factors, the slope rows (12 bytes) and the raw rows' values (8 bytes:
-//!   their pattern is the slope rows') beside the symmetric matrix built
-//!   from them (12 bytes per entry of it, as many as the raw rows where
-//!   their pattern is symmetric) and the entries whose transpose is
-//!   missing (8 bytes each): 32 bytes per entry where the pattern is
-//!   symmetric, as it is on most levels and, once their slivers are left
-//!   out, on a level of one-pixel dots (before, a third of its matrix had
-//!   no transpose) (the points' own rows are merged as soon as each
-//!   patch's last point is visited, so they are never all kept; the freed
-//!   merged rows are handed back to the system; the solver reads the
-//!   matrix in place); counted at 50 bytes for a margin (the 640 px dots:
-//!   estimated 3.79 GB, peak 2.91 GB) as [`PER_FACTOR_ENTRY`], and
+//!   that some quadrature point of it sees, less its slivers): 16 bytes in
+//!   the merged rows (patch, `F0`, the slope rows' `G` in single
+//!   precision), which become the symmetric matrix's pattern: a pair that
+//!   only one row holds is added to the other row (8 bytes each while they
+//!   are found, then 16; at most one per merged entry, 0.4 per merged
+//!   entry on a level of one-pixel dots). The rows are then split into one
+//!   table, 16 bytes per entry of the matrix (column, `S` built in place
+//!   in `F0`'s values, `G`), the merged rows freed as they are copied and
+//!   handed back to the system; the solver reads the matrix in place. The
+//!   points' own rows are merged as soon as each patch's last point is
+//!   visited, so they are never all kept. At most 32 bytes per merged
+//!   entry; counted at 36 for a margin as [`PER_FACTOR_ENTRY`], and
 //!   estimated from the exact visibility of a sample of patches, slivers
 //!   left out as the form factors leave them out
 //!   ([`transport::estimate_entries`]);
@@ -50,7 +49,7 @@ pub const PER_PIXEL: u64 = 100;
 pub const PER_PATCH: u64 = 200;
 /// Bytes per entry of the patches' merged form-factor rows, with the slope
 /// rows and the matrix built from them.
-pub const PER_FACTOR_ENTRY: u64 = 50;
+pub const PER_FACTOR_ENTRY: u64 = 36;
 /// Bytes per traced edge (see the module docs).
 pub const PER_EDGE: u64 = 220;
 /// What every bake needs whatever its size: threads, tables, buffers.
