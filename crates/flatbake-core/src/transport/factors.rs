@@ -115,7 +115,7 @@ impl FormFactors {
     /// share their part.
     fn from_raw_rows(raw: RawRows<'_>, len: &[f64]) -> FormFactors {
         let n = raw.row_ptr.len().saturating_sub(1);
-        let coverage = raw.sum;
+        let mut coverage = raw.sum;
         let col = &raw.col[..];
         // S = A + A^T with A_ij = L_i F0_ij / 2, each pair once, from the
         // row of its lower patch: both entries get `a + b` (the same bits
@@ -152,7 +152,6 @@ impl FormFactors {
         }
         let (row_ptr, col) = (raw.row_ptr.to_vec(), Arc::clone(raw.col));
         drop(cursor);
-        let mut coverage = coverage;
         let dlen = (0..n)
             .map(|i| {
                 let s: f64 = val[row_ptr[i]..row_ptr[i + 1]].iter().sum();
@@ -504,7 +503,9 @@ fn symmetric_rows(merged: Vec<Merged>, q: usize) -> (SlopeRows, Vec<f64>, Vec<f6
         }
         sum[p] = s;
         dropped += d;
-        let from = added.partition_point(|e| (e.0 as usize) < p);
+        // Row `p`'s entries to add: the last of the list, as many as its
+        // start counted beyond its own.
+        let from = added.len() - (row_ptr[p + 1] - row_ptr[p] - row.len());
         let mut extra = added[from..].iter().map(|e| (e.1, 0.0, 0.0)).peekable();
         let mut own = row.iter().copied().peekable();
         for w in row_ptr[p]..row_ptr[p + 1] {
