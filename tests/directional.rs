@@ -1014,6 +1014,7 @@ fn curved_reflected_light_matches_a_quadrature_of_the_patches() {
             lattice: None,
             anchors: None,
             sweep_every: false,
+            coarse: false,
             directional: true,
         };
         let got = gather_with_moments(&g, &patches, &rad, &pixels, &options);

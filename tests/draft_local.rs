@@ -102,6 +102,20 @@ fn close_to_exact(quality: Quality) {
         .expect("the report names the swept pixels");
     let n: usize = swept.reason.split(' ').next().unwrap().parse().unwrap();
     assert!(n > 500, "only {n} pixels swept: {}", swept.reason);
+    // `draft` interpolates 2 px cells between their corners where the
+    // larger cells fail (most of this room), and says how many.
+    let cells = fast
+        .report
+        .skipped
+        .iter()
+        .find(|k| k.reason.contains("cells of 2 px"));
+    if quality == Quality::Draft {
+        let cells = cells.expect("the report names the 2 px cells");
+        let m: usize = cells.reason.split(' ').next().unwrap().parse().unwrap();
+        assert!(m > 500, "only {m} pixels in 2 px cells: {}", cells.reason);
+    } else {
+        assert!(cells.is_none(), "{quality} has no 2 px cells");
+    }
     let (a, b) = (red(&fast, &lvl), red(&exact, &lvl));
     let top = b.iter().flatten().copied().fold(0.0, f64::max);
     assert!(top > 0.0);
@@ -159,15 +173,18 @@ fn close_to_exact(quality: Quality) {
             eprintln!("{row}");
         }
     }
-    // Interpolation is within 2 % of a cell's corners; the sweeps are exact
-    // wherever the block's list holds what the pixel sees. A pixel seeing
-    // through a wall would be off by a good part of the brightest light.
-    // Measured: `normal` (the ring of anchors on each list) 0.09 % and
-    // 0.3 % of the brightest light, `draft` (the block's corners only)
-    // 0.69 % and 3.4 %; with each block's list cut to what one corner
-    // sees, 6.2 % and 23 %.
+    // Interpolation is within 2 % of a cell's corners (`draft`'s 2 px
+    // cells: corners within 20 % of each other, so a shadow line that
+    // changes them less is blurred); the sweeps are exact wherever the
+    // block's list holds what the pixel sees. A pixel seeing through a
+    // wall would be off by a good part of the brightest light. Measured:
+    // `normal` (the ring of anchors on each list) 0.09 % and 0.3 % of the
+    // brightest light, `draft` (the block's corners only, 8 px blocks,
+    // 2 px cells) 1.6 % and 3.9 % (0.69 % and 3.4 % with 4 px blocks and
+    // without the 2 px cells); with each block's list cut to what one
+    // corner sees, 6.2 % and 23 %.
     let (rms_max, worst_max) = match quality {
-        Quality::Draft => (0.01, 0.05),
+        Quality::Draft => (0.025, 0.05),
         _ => (0.004, 0.02),
     };
     assert!(rms < rms_max, "relative RMS {rms}");

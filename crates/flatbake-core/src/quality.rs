@@ -64,6 +64,15 @@ pub struct Knobs {
     /// anchors around it ([`crate::gather::GatherOptions::sweep_every`]).
     #[serde(default)]
     pub sweep_every: bool,
+    /// `draft`: after the lattice's tested cells, every 2 px cell of floor
+    /// in one free region that they left is gathered at its corners and
+    /// interpolated where those agree within
+    /// [`crate::gather::lattice::SPREAD`] ([`crate::gather::GatherOptions::coarse`]):
+    /// about one pixel in four is gathered there, and a shadow line between
+    /// two gathered pixels that changes neither by more than that is
+    /// blurred over the two pixels.
+    #[serde(default)]
+    pub coarse: bool,
 }
 
 /// The lattice tolerance of `draft` (see [`Knobs::lattice`]).
@@ -91,8 +100,9 @@ impl Quality {
                 tolerance: 1e-4,
                 reach_bound: 1e-4,
                 lattice: Some(DRAFT_LATTICE),
-                anchors: Some(crate::gather::lattice::ANCHOR),
+                anchors: Some(8),
                 sweep_every: true,
+                coarse: true,
             },
             Quality::Normal => Knobs {
                 patch_len: 4.0,
@@ -103,6 +113,7 @@ impl Quality {
                 lattice: Some(NORMAL_LATTICE),
                 anchors: Some(crate::gather::lattice::ANCHOR),
                 sweep_every: false,
+                coarse: false,
             },
             Quality::High => Knobs {
                 patch_len: 2.0,
@@ -113,6 +124,7 @@ impl Quality {
                 lattice: None,
                 anchors: None,
                 sweep_every: false,
+                coarse: false,
             },
             Quality::Reference => Knobs {
                 patch_len: 0.5,
@@ -123,6 +135,7 @@ impl Quality {
                 lattice: None,
                 anchors: None,
                 sweep_every: false,
+                coarse: false,
             },
         }
     }

@@ -160,6 +160,7 @@ fn run(
                 lattice: settings.knobs.lattice.filter(|_| !settings.exhaustive),
                 anchors: settings.knobs.anchors.filter(|_| !settings.exhaustive),
                 sweep_every: settings.knobs.sweep_every,
+                coarse: settings.knobs.coarse,
                 directional: settings.directional,
             };
             let gather::Gather {
@@ -168,14 +169,27 @@ fn run(
                 stats,
                 counts,
             } = gather::gather_with_moments(geometry, patches, rad, reached, &options);
-            if counts.interpolated > 0 {
+            let tested = counts.interpolated - counts.untested;
+            if tested > 0 {
                 log.skip(
                     "pixels",
                     format!(
                         "{} of {} floor pixels interpolated in cells of 8 or 4 px between pixels gathered exactly, where the cell's centre matched the interpolation within {}% and saw the same lights and shadow lines as its corners",
-                        counts.interpolated,
+                        tested,
                         reached.len(),
                         100.0 * options.lattice.unwrap_or(0.0)
+                    ),
+                );
+            }
+            if counts.untested > 0 {
+                log.skip(
+                    "pixels",
+                    format!(
+                        "{} of {} floor pixels interpolated in cells of {} px (the other cells' pixels) between their corners, gathered exactly, where those were within {}% of each other (a shadow line between them that changes neither by more is blurred over 2 px; never across a wall)",
+                        counts.untested,
+                        reached.len(),
+                        gather::lattice::COARSE,
+                        100.0 * gather::lattice::SPREAD,
                     ),
                 );
             }

@@ -25,6 +25,9 @@ pub struct GatherCounts {
     /// Pixels whose light was interpolated between exactly gathered lattice
     /// points instead of gathered ([`GatherOptions::lattice`]).
     pub interpolated: u64,
+    /// Of those, the pixels interpolated in cells tested at their corners
+    /// only ([`GatherOptions::coarse`]).
+    pub untested: u64,
     /// Pixels gathered with a sweep over the edges that the anchors of
     /// their block see ([`super::lattice::ANCHOR`]) instead of a full
     /// visibility query.
@@ -36,6 +39,7 @@ impl std::ops::AddAssign for GatherCounts {
         self.pieces += o.pieces;
         self.patch_pieces += o.patch_pieces;
         self.interpolated += o.interpolated;
+        self.untested += o.untested;
         self.local += o.local;
     }
 }
@@ -138,6 +142,11 @@ pub struct GatherOptions<'a> {
     /// lists (`draft`); or only those whose full query would walk, over the
     /// lists of the corners and of the ring of anchors around them.
     pub sweep_every: bool,
+    /// After the lattice's tested cells, cells of [`super::lattice::COARSE`]
+    /// px gathered at their corners and interpolated where those agree
+    /// within [`super::lattice::SPREAD`] (`draft`: about one pixel in four
+    /// gathered where the larger cells fail). Only with a lattice.
+    pub coarse: bool,
     /// Also compute the first circular moments of every pixel's light
     /// (`gather/directional.rs`; the flatland kernel only). Default off.
     pub directional: bool,
@@ -536,6 +545,7 @@ pub fn gather_with_moments(
         lattice,
         anchors,
         sweep_every,
+        coarse,
         directional,
     } = *options;
     let tree = PatchTree::new(
@@ -568,7 +578,15 @@ pub fn gather_with_moments(
     match (lattice, anchors) {
         (Some(relative), _) if kernel == Kernel::Flatland => {
             let spacing = anchors.unwrap_or(super::local::ANCHOR);
-            super::lattice::gather(&exact, pixels, relative, tolerance, spacing, sweep_every)
+            super::lattice::gather(
+                &exact,
+                pixels,
+                relative,
+                tolerance,
+                spacing,
+                sweep_every,
+                coarse,
+            )
         }
         (None, Some(spacing)) if kernel == Kernel::Flatland => {
             super::local::gather_all(&exact, pixels, spacing)

@@ -13,8 +13,9 @@
 //! edge of their direct light between them), the cell's other pixels are interpolated
 //! bilinearly from the corners. Every other cell is split into four cells
 //! of 4 x 4 pixels, tested the same way, and those that fail are gathered
-//! pixel by pixel. So a smooth open floor costs two exact pixels in 64, and a level
-//! of one-pixel walls costs what an exact gather does. What it misses is
+//! pixel by pixel (`draft` first tries cells of 2 px tested at their
+//! corners only, [`COARSE`]). So a smooth open floor costs two exact pixels
+//! in 64, and a level of one-pixel walls costs what an exact gather does. What it misses is
 //! detail smaller than the cell that neither the centre nor the corners
 //! touch, such as a shadow line no wider than a pixel running between them:
 //! the error is measured per class of level in docs/performance.md. At
@@ -31,6 +32,22 @@ pub use super::local::{ANCHOR, NEAR};
 /// is split into cells of the next spacing, and after the last one gathered
 /// pixel by pixel.
 pub const STEPS: [i32; 2] = [8, 4];
+
+/// With [`GatherOptions::coarse`](super::GatherOptions::coarse) (`draft`),
+/// a last spacing whose cells are tested only at their corners: a cell of
+/// this side (3 x 3 pixels, and the ring of pixels around them, floor of
+/// one free region) that no coarser cell interpolated is gathered at its
+/// four corners, and interpolated in between where they agree within
+/// [`SPREAD`]. So about one pixel in four is gathered where the coarser
+/// cells failed; a shadow line that passes between the corners without
+/// changing them by more than that is blurred over the cell. Walls are
+/// never crossed, and no interpolated pixel is beside one.
+pub const COARSE: i32 = 2;
+
+/// See [`COARSE`]: the largest difference between a cell's corners, as a
+/// fraction of the largest, in every component. A hard shadow line or the
+/// steep light near a lamp fails it, and the cell is gathered.
+pub const SPREAD: f64 = 0.2;
 
 /// At `normal`, a trial comes first: the 8 px cells on a grid of every
 /// `TRIAL`th cell along each axis are gathered and tested; where fewer than
@@ -67,6 +84,7 @@ pub(super) fn gather(
     absolute: f64,
     spacing: i32,
     sweep_every: bool,
+    coarse: bool,
 ) -> Gather {
     let g = exact.geometry;
     let (w, h) = (g.width as i32, g.height as i32);
@@ -99,7 +117,8 @@ pub(super) fn gather(
     let km = if exact.directional { 2 * k } else { 0 };
     let mut moments = vec![0.0; pixels.len() * km];
     let mut signature = vec![0u64; pixels.len()];
-    // 0: to gather, 1: gathered, 2: interpolated.
+    // 0: to gather, 1: gathered, 2: interpolated, 3: interpolated in a
+    // cell of the last spacing ([`COARSE`]).
     let mut state = vec![0u8; pixels.len()];
     // Pixels of a cell that failed at the last spacing: gathered at the end
     // even if a neighbouring cell interpolated them.
@@ -163,18 +182,32 @@ pub(super) fn gather(
     // Where the trial rejects the lattice, no cell is tested: the last pass
     // gathers every other pixel as without the lattice, the trial's probes
     // keeping their light and its anchors their lists.
-    let steps: &[i32] = if rejected { &[] } else { &STEPS };
-    // Top-left corners of the cells that passed at the previous spacing.
-    let mut passed: std::collections::HashSet<[i32; 2]> = Default::default();
+    let mut steps: Vec<i32> = if rejected { Vec::new() } else { STEPS.to_vec() };
+    if coarse && !rejected {
+        steps.push(COARSE);
+    }
+    // Per spacing so far, the top-left corners of the cells that passed.
+    let mut passed: Vec<(i32, std::collections::HashSet<[i32; 2]>)> = Vec::new();
     for (level, &step) in steps.iter().enumerate() {
-        let parent = (level > 0).then(|| STEPS[level - 1]);
+        // The last spacing of `coarse`: gathered and tested at the corners.
+        let corners_only = coarse && step == COARSE;
         let mut cells = Vec::new();
         for y0 in (0..h - step).step_by(step as usize) {
             for x0 in (0..w - step).step_by(step as usize) {
-                let inside_passed = parent.is_some_and(|ps| {
-                    passed.contains(&[x0 - x0.rem_euclid(ps), y0 - y0.rem_euclid(ps)])
+                let inside_passed = passed.iter().any(|(ps, cells)| {
+                    cells.contains(&[x0 - x0.rem_euclid(*ps), y0 - y0.rem_euclid(*ps)])
                 });
-                if !inside_passed && whole(step, x0, y0) {
+                // A cell tested at its corners only needs floor of its
+                // region around it too: a pixel of its side beside a wall
+                // or a pillar sees much less than the corners it lies
+                // between (one beside a one-pixel pillar was off by 5 % of
+                // the brightest light).
+                let whole = if corners_only {
+                    x0 >= 1 && y0 >= 1 && whole(step + 2, x0 - 1, y0 - 1)
+                } else {
+                    whole(step, x0, y0)
+                };
+                if !inside_passed && whole {
                     cells.push([x0, y0]);
                 }
             }
@@ -182,8 +215,9 @@ pub(super) fn gather(
         // Probes not gathered yet (an interpolated one is gathered now: the
         // cells that use it need its exact light).
         let mut want: Vec<usize> = Vec::new();
+        let gathered_at = if corners_only { 4 } else { 9 };
         for &[x0, y0] in &cells {
-            for (x, y) in probes(x0, y0, step) {
+            for (x, y) in probes(x0, y0, step).into_iter().take(gathered_at) {
                 let i = index(x, y).expect("a whole cell is floor");
                 if state[i] != 1 {
                     state[i] = 1;
@@ -194,16 +228,20 @@ pub(super) fn gather(
         take(
             &mut lists,
             &want,
-            Some(SHADOWS * relative),
+            (!corners_only).then_some(SHADOWS * relative),
             (&mut values, &mut moments, &mut signature, &mut state),
         );
-        let last = level + 1 == STEPS.len();
+        let last = level + 1 == steps.len();
         let mut now_passed = std::collections::HashSet::new();
         for &[x0, y0] in &cells {
             let probe =
                 probes(x0, y0, step).map(|(x, y)| index(x, y).expect("a whole cell is floor"));
             let corner = [probe[0], probe[1], probe[2], probe[3]];
-            let smooth = test(&probe, &values, &signature);
+            let smooth = if corners_only {
+                corners_agree(&corner, &values, k)
+            } else {
+                test(&probe, &values, &signature)
+            };
             if smooth {
                 now_passed.insert([x0, y0]);
             }
@@ -237,18 +275,18 @@ pub(super) fn gather(
                             .map(|(&j, wt)| wt * moments[j * km + c])
                             .sum();
                     }
-                    state[i] = 2;
+                    state[i] = if corners_only { 3 } else { 2 };
                 }
             }
         }
-        passed = now_passed;
+        passed.push((step, now_passed));
     }
     // Last pass: pixels of rough cells, and those in no whole cell.
     let rest: Vec<usize> = (0..pixels.len())
-        .filter(|&i| state[i] == 0 || (state[i] == 2 && exact_too[i]))
+        .filter(|&i| state[i] == 0 || (state[i] >= 2 && exact_too[i]))
         .collect();
     let interpolated = (0..pixels.len())
-        .filter(|&i| state[i] == 2 && !exact_too[i])
+        .filter(|&i| state[i] >= 2 && !exact_too[i])
         .count();
     exact.done(interpolated);
     // (The last pass asks for no signatures: their memory goes first.)
@@ -262,13 +300,25 @@ pub(super) fn gather(
     drop(rest);
     // Every pixel of `rest` is gathered now; less the anchors that the last
     // pass gathered exactly too.
-    counts.interpolated = state.iter().filter(|&&s| s == 2).count() as u64;
+    counts.interpolated = state.iter().filter(|&&s| s >= 2).count() as u64;
+    counts.untested = state.iter().filter(|&&s| s == 3).count() as u64;
     Gather {
         values,
         moments,
         stats,
         counts,
     }
+}
+
+/// Whether the light at the pixels `corner` agrees within [`SPREAD`] in
+/// each of its `k` components (see [`COARSE`]).
+fn corners_agree(corner: &[usize; 4], values: &[f64], k: usize) -> bool {
+    (0..k).all(|c| {
+        let (lo, hi) = corner.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &j| {
+            (lo.min(values[j * k + c]), hi.max(values[j * k + c]))
+        });
+        hi - lo <= SPREAD * hi
+    })
 }
 
 /// The pixels at which a cell of side `step` at `(x0, y0)` is gathered
