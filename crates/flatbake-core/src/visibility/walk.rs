@@ -91,6 +91,8 @@ pub(super) struct Coverage {
     /// Where the last search ended: the walk inserts the edges of one
     /// block after another, so the next piece is usually close by.
     hint: usize,
+    /// Where the last test of a block ([`Coverage::hides`]) started.
+    seen: usize,
 }
 
 impl Coverage {
@@ -108,9 +110,17 @@ impl Coverage {
     /// v.end <= k)`), searched outwards from [`Coverage::hint`].
     #[inline]
     fn find(&mut self, k: f64) -> usize {
+        let i = self.search(self.hint, k);
+        self.hint = i;
+        i
+    }
+
+    /// `iv.partition_point(|v| v.end <= k)`, searched outwards from `h`.
+    #[inline]
+    fn search(&self, h: usize, k: f64) -> usize {
         let n = self.iv.len();
         let before = |i: usize| self.iv[i].end <= k;
-        let h = self.hint.min(n);
+        let h = h.min(n);
         // The answer lies in `lo..=hi`: widen by doubling steps from `h`.
         let (mut lo, mut hi);
         if h < n && before(h) {
@@ -146,9 +156,7 @@ impl Coverage {
                 step *= 2;
             }
         }
-        let i = lo + self.iv[lo..hi].partition_point(|v| v.end <= k);
-        self.hint = i;
-        i
+        lo + self.iv[lo..hi].partition_point(|v| v.end <= k)
     }
 
     #[inline]
@@ -157,8 +165,11 @@ impl Coverage {
     }
 
     /// True when every direction in `[a, b]` already hits something nearer than `dmin`.
-    fn hides(&self, a: f64, b: f64, dmin: f64) -> bool {
-        let mut i = self.iv.partition_point(|v| v.end <= a);
+    /// The walk tests blocks near each other one after the other, so the
+    /// search starts where the last test started ([`Coverage::seen`]).
+    fn hides(&mut self, a: f64, b: f64, dmin: f64) -> bool {
+        let mut i = self.search(self.seen, a);
+        self.seen = i;
         while i < self.iv.len() && self.start(i) <= b {
             let v = &self.iv[i];
             // NaN distances count as not hidden.
