@@ -6,7 +6,9 @@ use common::*;
 
 use flatbake_core::geometry::{Edge, trace};
 use flatbake_core::level::Level;
-use flatbake_core::visibility::{Blocks, Rect, Span, Sweeper, View, Viewpoint, diamond};
+use flatbake_core::visibility::{
+    Blocks, Rect, Span, Structures, Sweeper, View, Viewpoint, diamond,
+};
 use proptest::prelude::*;
 
 /// Walls at a random density on floor.
@@ -409,12 +411,9 @@ fn a_box_between_a_region_and_an_edge_culls_it() {
     }
 }
 
-/// With `defer`, every point is either queried (with the spans it gets
-/// without `defer`) or handed back, exactly once: in a level of a plain
-/// room beside a field of pillars behind a wall, the pillar field's points
-/// (long candidate lists) are handed back and the room's are not.
-#[test]
-fn deferring_hands_back_walking_points_and_keeps_the_rest() {
+/// A plain room beside a field of pillars behind a wall: its room's points
+/// have short candidate lists, its pillar field's points walk the blocks.
+fn room_and_pillar_field() -> Level {
     let (w, h) = (120, 64);
     let rows: Vec<String> = (0..h)
         .map(|y| {
@@ -430,38 +429,53 @@ fn deferring_hands_back_walking_points_and_keeps_the_rest() {
                 .collect()
         })
         .collect();
-    let level = ascii(&refs(&rows), &[('#', wall(0.5))]);
+    ascii(&refs(&rows), &[('#', wall(0.5))])
+}
+
+/// Every point's spans from one call of `for_each_visibility_counted`
+/// (`None` for a point handed back to `defer`).
+fn spans_of(
+    structures: &Structures,
+    pos: Option<&[[f64; 2]]>,
+    pixels: &[[i32; 2]],
+    defer: Option<&(dyn Fn(usize) + Sync)>,
+) -> Vec<Option<Vec<Span>>> {
+    let got: Vec<std::sync::Mutex<Option<Vec<Span>>>> =
+        (0..pixels.len()).map(|_| Default::default()).collect();
+    flatbake_core::visibility::for_each_visibility_counted(
+        structures,
+        pos,
+        pixels,
+        &|_| View::Full,
+        f64::INFINITY,
+        None,
+        &|_| {},
+        defer,
+        &|i, spans: &[Span]| {
+            let mut slot = got[i].lock().unwrap();
+            assert!(slot.is_none(), "point {i} visited twice");
+            *slot = Some(spans.to_vec());
+        },
+    );
+    got.into_iter().map(|m| m.into_inner().unwrap()).collect()
+}
+
+/// With `defer`, every point is either queried (with the spans it gets
+/// without `defer`) or handed back, exactly once: in a level of a plain
+/// room beside a field of pillars behind a wall, the pillar field's points
+/// (long candidate lists) are handed back and the room's are not.
+#[test]
+fn deferring_hands_back_walking_points_and_keeps_the_rest() {
+    let level = room_and_pillar_field();
     let g = trace(&level);
     let (pixels, _) = free_pixel_centres(&g, &level);
-    let spans_of = |defer: Option<&(dyn Fn(usize) + Sync)>| {
-        let got: Vec<std::sync::Mutex<Option<Vec<Span>>>> =
-            (0..pixels.len()).map(|_| Default::default()).collect();
-        flatbake_core::visibility::for_each_visibility_counted(
-            &g,
-            None,
-            &pixels,
-            &|_| View::Full,
-            f64::INFINITY,
-            None,
-            &|_| {},
-            defer,
-            &|i, spans: &[Span]| {
-                let mut slot = got[i].lock().unwrap();
-                assert!(slot.is_none(), "point {i} visited twice");
-                *slot = Some(spans.to_vec());
-            },
-        );
-        got.into_iter()
-            .map(|m| m.into_inner().unwrap())
-            .collect::<Vec<_>>()
-    };
-    let all = spans_of(None);
+    let all = spans_of(&Structures::new(&g), None, &pixels, None);
     let handed: Vec<std::sync::atomic::AtomicU32> =
         (0..pixels.len()).map(|_| Default::default()).collect();
     let defer = |i: usize| {
         handed[i].fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     };
-    let some = spans_of(Some(&defer));
+    let some = spans_of(&Structures::new(&g), None, &pixels, Some(&defer));
     let mut deferred = 0;
     for i in 0..pixels.len() {
         let n = handed[i].load(std::sync::atomic::Ordering::Relaxed);
@@ -481,4 +495,34 @@ fn deferring_hands_back_walking_points_and_keeps_the_rest() {
         "{deferred} of {} points handed back",
         pixels.len()
     );
+}
+
+/// The structures a call builds are kept for the next: calls that share
+/// one [`Structures`] (points off the pixel centres and at them, in either
+/// order, a part of the pixels and all of them) give every point the spans
+/// that a call with structures of its own gives, so sharing them between
+/// the passes of a gather changes nothing.
+#[test]
+fn kept_structures_give_the_same_spans() {
+    let level = room_and_pillar_field();
+    let g = trace(&level);
+    let (pixels, _) = free_pixel_centres(&g, &level);
+    let off: Vec<[f64; 2]> = pixels
+        .iter()
+        .map(|p| [p[0] as f64 + 0.25, p[1] as f64 + 0.75])
+        .collect();
+    let fresh_off = spans_of(&Structures::new(&g), Some(&off), &pixels, None);
+    let fresh = spans_of(&Structures::new(&g), None, &pixels, None);
+    let half = &pixels[..pixels.len() / 2];
+    // Off the centres first, then centres first.
+    let kept = Structures::new(&g);
+    assert_eq!(spans_of(&kept, Some(&off), &pixels, None), fresh_off);
+    assert_eq!(spans_of(&kept, None, half, None)[..], fresh[..half.len()]);
+    assert_eq!(spans_of(&kept, None, &pixels, None), fresh);
+    let kept = Structures::new(&g);
+    assert_eq!(spans_of(&kept, None, half, None)[..], fresh[..half.len()]);
+    assert_eq!(spans_of(&kept, Some(&off), &pixels, None), fresh_off);
+    assert_eq!(spans_of(&kept, None, &pixels, None), fresh);
+    // No points: nothing to build or visit.
+    assert!(spans_of(&Structures::new(&g), None, &[], None).is_empty());
 }

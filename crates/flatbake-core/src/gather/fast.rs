@@ -9,7 +9,9 @@ use crate::transport::kernel::Reach;
 use crate::transport::kernel::{Falloff, GatherLine, GatherPoints};
 use crate::transport::{Patches, wanted_reach};
 use crate::visibility::marks::Marks;
-use crate::visibility::{Span, TileTree, View, VisitStats, centre, for_each_visibility_counted};
+use crate::visibility::{
+    Span, Structures, TileTree, View, VisitStats, centre, for_each_visibility_counted,
+};
 
 use super::patch_tree::node_range;
 use super::*;
@@ -567,8 +569,10 @@ pub fn gather_with_moments(
     // Edges with light, each within its reach.
     let reach2 = wanted_reach(reach, |e| rad.edge_emits[e] || rad.edge_reflects[e]);
     let tally = Tally::new(progress, pixels.len());
+    let structures = Structures::new(geometry);
     let exact = Exact {
         geometry,
+        structures: &structures,
         light: &light,
         reach_max: reach.max,
         reach2: &reach2,
@@ -607,6 +611,8 @@ pub fn gather_with_moments(
 /// every pass of the lattice gather shares.
 pub(super) struct Exact<'a> {
     pub geometry: &'a Geometry,
+    /// The level's visibility structures, built once for every pass.
+    pub structures: &'a Structures<'a>,
     pub light: &'a Lighting<'a>,
     pub reach_max: f64,
     pub reach2: &'a [f64],
@@ -675,7 +681,7 @@ impl Exact<'_> {
         // and a pair per pixel is 8 bytes of the gather's peak).
         let merged = PerThread::<2>::new();
         let stats = for_each_visibility_counted(
-            self.geometry,
+            self.structures,
             None,
             pixels,
             &|_| View::Full,

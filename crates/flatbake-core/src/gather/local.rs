@@ -569,7 +569,7 @@ fn run_recording(
         let shared_moments = Disjoint::new(&mut moments);
         let shared_seen = Disjoint::new(&mut seen);
         crate::visibility::for_each_visibility_counted(
-            exact.geometry,
+            exact.structures,
             None,
             pixels,
             &|_| View::Full,

@@ -40,7 +40,9 @@ mod tiles;
 mod walk;
 
 pub use cull::{Rect, Zone, box_hides, run_hides};
-pub use points::{PointGrid, VisitStats, centre, for_each_visibility, for_each_visibility_counted};
+pub use points::{
+    PointGrid, Structures, VisitStats, centre, for_each_visibility, for_each_visibility_counted,
+};
 pub use tiles::{Count, LeafRegions, Region, TileTree};
 pub use walk::Blocks;
 

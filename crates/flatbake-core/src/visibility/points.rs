@@ -3,6 +3,7 @@
 //! parallel over the leaf tiles of a [`TileTree`].
 
 use std::cell::RefCell;
+use std::sync::OnceLock;
 
 use crate::geometry::Geometry;
 use crate::visibility::{
@@ -81,6 +82,46 @@ impl PointGrid {
     }
 }
 
+/// The structures of one level that [`for_each_visibility_counted`] queries
+/// through: its [`TileTree`] (one for pixel centres, one for other points)
+/// and its [`Blocks`]. Each is built on first use and then kept, so that
+/// the passes of one gather (a lattice's passes, the anchors of the block
+/// sweeps, the pixels handed back to them) build each once instead of once
+/// per pass: on a level of millions of edges a build takes tenths of a
+/// second, and all of its memory is touched anew.
+pub struct Structures<'g> {
+    geometry: &'g Geometry,
+    /// For other points, then for pixel centres.
+    trees: [OnceLock<TileTree<'g>>; 2],
+    blocks: OnceLock<Blocks<'g>>,
+}
+
+impl<'g> Structures<'g> {
+    /// Nothing built yet.
+    pub fn new(geometry: &'g Geometry) -> Structures<'g> {
+        Structures {
+            geometry,
+            trees: [OnceLock::new(), OnceLock::new()],
+            blocks: OnceLock::new(),
+        }
+    }
+
+    /// The level.
+    pub fn geometry(&self) -> &'g Geometry {
+        self.geometry
+    }
+
+    /// The tile tree, culled for pixel centres only with `centres`.
+    fn tree(&self, centres: bool) -> &TileTree<'g> {
+        self.trees[usize::from(centres)].get_or_init(|| TileTree::new(self.geometry, centres))
+    }
+
+    /// The edges binned for the walk.
+    fn blocks(&self) -> &Blocks<'g> {
+        self.blocks.get_or_init(|| Blocks::new(self.geometry))
+    }
+}
+
 thread_local! {
     static SWEEPER: RefCell<(Sweeper, Vec<Span>, Vec<u32>)> = RefCell::new((Sweeper::new(), Vec::new(), Vec::new()));
 }
@@ -122,7 +163,7 @@ where
     F: Fn(usize, &[Span]) + Sync,
 {
     for_each_visibility_counted(
-        geometry,
+        &Structures::new(geometry),
         Some(pos),
         pixel,
         view,
@@ -145,10 +186,11 @@ pub fn centre(px: [i32; 2]) -> [f64; 2] {
 /// millions of pixels). With `defer`, a point that would walk the level's
 /// blocks (no short candidate list in its leaf tile, or a long list that
 /// culling left almost whole) is passed to `defer` instead of queried: `f`
-/// is not called for it and `done` does not count it.
+/// is not called for it and `done` does not count it. The level and what
+/// is built to query it come with `structures`, kept from call to call.
 #[allow(clippy::too_many_arguments)]
 pub fn for_each_visibility_counted<F>(
-    geometry: &Geometry,
+    structures: &Structures,
     pos: Option<&[[f64; 2]]>,
     pixel: &[[i32; 2]],
     view: &(dyn Fn(usize) -> View + Sync),
@@ -161,11 +203,14 @@ pub fn for_each_visibility_counted<F>(
 where
     F: Fn(usize, &[Span]) + Sync,
 {
+    if pixel.is_empty() {
+        return VisitStats::default();
+    }
+    let geometry = structures.geometry();
     // A floor gather asks at pixel centres only: its regions cull more.
     let centres = pos.is_none_or(|pos| pos.iter().zip(pixel).all(|(&p, &px)| p == centre(px)));
     let at = |i: usize| pos.map_or_else(|| centre(pixel[i]), |pos| pos[i]);
-    let tree = TileTree::new(geometry, centres);
-    let blocks = Blocks::new(geometry);
+    let tree = structures.tree(centres);
     let grid = PointGrid::new(geometry.width, geometry.height, tree.leaf as usize, pixel);
     let unreached = std::sync::atomic::AtomicU64::new(0);
     let left_out = std::sync::atomic::AtomicU64::new(0);
@@ -241,7 +286,7 @@ where
                                 seeds.clear();
                             }
                             dropped += sweeper.walk_wanted(
-                                &blocks,
+                                structures.blocks(),
                                 Viewpoint::new(at(i), view(i), comp),
                                 reach_max,
                                 seeds,
