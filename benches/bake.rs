@@ -18,6 +18,7 @@ use flatbake_core::level::Level;
 use flatbake_core::quality::Quality;
 use flatbake_core::transport::kernel::{Falloff, Reach};
 use flatbake_core::transport::{self, Patches};
+use flatbake_core::visibility::Structures;
 use flatbake_synth::{self as synth, Painted};
 
 fn level(p: &Painted) -> (Level, Option<f64>) {
@@ -51,7 +52,14 @@ fn sizes(c: &mut Criterion) {
         let reach = Reach::new(&lens, &vec![1.0; lens.len()], f, 0.5, s.knobs.reach_bound);
         g.bench_with_input(BenchmarkId::new("form_factors", size), &geo, |b, geo| {
             b.iter(|| {
-                transport::form_factors(geo, &patches, s.knobs.quad, f, &reach, s.knobs.reach_bound)
+                transport::form_factors(
+                    &Structures::new(geo),
+                    &patches,
+                    s.knobs.quad,
+                    f,
+                    &reach,
+                    s.knobs.reach_bound,
+                )
             })
         });
         g.bench_with_input(BenchmarkId::new("bake", size), &lv, |b, lv| {

@@ -7,6 +7,7 @@ use flatbake_core::bake::{Settings, bake};
 use flatbake_core::geometry::trace;
 use flatbake_core::quality::Quality;
 use flatbake_core::transport::{Patches, form_factors};
+use flatbake_core::visibility::Structures;
 
 fn quiet(_: &str) {}
 
@@ -57,7 +58,7 @@ fn rows_sum_to_one_in_a_closed_room_and_reciprocity_holds() {
         let k = q.knobs();
         let p = Patches::new(&g, k.patch_len);
         let (ff, _, _) = form_factors(
-            &g,
+            &Structures::new(&g),
             &p,
             k.quad,
             None,

@@ -19,6 +19,7 @@ use flatbake_core::quality::Quality;
 use flatbake_core::transport::kernel::Reach;
 use flatbake_core::transport::solve::{SolveError, SolveSettings, solve_channel};
 use flatbake_core::transport::{Patches, form_factors};
+use flatbake_core::visibility::Structures;
 use proptest::prelude::*;
 
 fn quiet(_: &str) {}
@@ -271,7 +272,7 @@ fn hard_system() -> (flatbake_core::transport::FormFactors, Vec<f64>, Vec<f64>) 
     let g = trace(&lvl);
     let patches = Patches::new(&g, 0.5);
     let reach = Reach::unlimited(g.edges.len());
-    let (ff, _, _) = form_factors(&g, &patches, 3, None, &reach, 0.0);
+    let (ff, _, _) = form_factors(&Structures::new(&g), &patches, 3, None, &reach, 0.0);
     let mat = |p: usize| &lvl.materials[g.edges[patches.edge[p] as usize].material as usize];
     let rho = (0..patches.len()).map(|p| mat(p).reflectance[0]).collect();
     let e = (0..patches.len()).map(|p| mat(p).emission[0]).collect();

@@ -692,6 +692,7 @@ fn a_second_bake_into_a_held_folder_waits() {
 #[test]
 fn the_memory_estimate_counts_form_factor_entries_from_a_sample() {
     use flatbake_core::transport::{self, kernel::Reach};
+    use flatbake_core::visibility::Structures;
     for (falloff, tolerance) in [(None, 0.25), (Some(6.0), 0.25)] {
         let (level, _) = flatbake_synth::bench_obstacles(192, 20, 4, 3)
             .level()
@@ -707,8 +708,9 @@ fn the_memory_estimate_counts_form_factor_entries_from_a_sample() {
             0.5,
             knobs.reach_bound,
         );
+        let structures = Structures::new(&scene.geometry);
         let (ff, _, _) = transport::form_factors(
-            &scene.geometry,
+            &structures,
             &scene.patches,
             knobs.quad,
             falloff,
@@ -721,7 +723,7 @@ fn the_memory_estimate_counts_form_factor_entries_from_a_sample() {
         let n = scene.patch_count();
         let estimate = |samples| {
             transport::estimate_entries(
-                &scene.geometry,
+                &structures,
                 &scene.patches,
                 knobs.quad,
                 falloff,

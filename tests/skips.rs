@@ -368,13 +368,15 @@ fn draft_interpolates_smooth_floor_and_stays_near_its_exact_gather() {
 fn slivers_keep_row_sums_and_reciprocity_and_move_little_light() {
     use flatbake_core::bake::Scene;
     use flatbake_core::transport::{form_factors, kernel::Reach};
+    use flatbake_core::visibility::Structures;
     let (level, _) = flatbake_synth::dots(96, 5).level().expect("palette");
     let knobs = Quality::Normal.knobs();
     let scene = Scene::new(&level, &knobs, false);
     let (g, p) = (&scene.geometry, &scene.patches);
     let reach = Reach::unlimited(g.edges.len());
-    let (whole, _, _) = form_factors(g, p, knobs.quad, None, &reach, 0.0);
-    let (thin, _, _) = form_factors(g, p, knobs.quad, None, &reach, knobs.reach_bound);
+    let structures = Structures::new(g);
+    let (whole, _, _) = form_factors(&structures, p, knobs.quad, None, &reach, 0.0);
+    let (thin, _, _) = form_factors(&structures, p, knobs.quad, None, &reach, knobs.reach_bound);
     assert_eq!(whole.dropped, 0);
     assert!(thin.dropped > 0, "a dots field has slivers");
     assert!(thin.nnz() < whole.nnz());

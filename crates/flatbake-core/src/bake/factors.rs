@@ -7,6 +7,7 @@ use super::{Ctx, Log, Plan, Scene};
 use crate::gather::Kernel;
 use crate::transport::kernel::Reach;
 use crate::transport::{self, FormFactors, SlopeRows};
+use crate::visibility::Structures;
 
 /// The form factors of a scene, whichever kernel built them.
 #[derive(Default)]
@@ -37,7 +38,13 @@ impl Transport {
 
 /// Builds F for `scene` with the settings' kernel; drops the bounces that
 /// no reflecting patch can receive from `plan` (recorded in `log`).
-pub fn form_factors(ctx: &Ctx, scene: &Scene, plan: &mut Plan, log: &mut Log) -> Transport {
+pub fn form_factors(
+    ctx: &Ctx,
+    scene: &Scene,
+    plan: &mut Plan,
+    structures: &Structures,
+    log: &mut Log,
+) -> Transport {
     let (geometry, patches) = (&scene.geometry, &scene.patches);
     let edges = &geometry.edges;
     let mut out = Transport::default();
@@ -53,7 +60,7 @@ pub fn form_factors(ctx: &Ctx, scene: &Scene, plan: &mut Plan, log: &mut Log) ->
                 ctx.reach_bound,
             );
             let (ff, slopes, stats) = transport::form_factors(
-                geometry,
+                structures,
                 patches,
                 ctx.settings.knobs.quad,
                 ctx.falloff,

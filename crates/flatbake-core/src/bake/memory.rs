@@ -42,6 +42,7 @@ use super::{Ctx, Plan, Scene};
 use crate::gather::Kernel;
 use crate::transport::kernel::Reach;
 use crate::transport::{self, solve::SolveSettings};
+use crate::visibility::Structures;
 
 /// Bytes per level pixel outside the form factors (see the module docs).
 pub const PER_PIXEL: u64 = 100;
@@ -71,7 +72,7 @@ pub struct MemoryEstimate {
 
 impl MemoryEstimate {
     /// The estimate for baking `scene` as planned.
-    pub fn new(ctx: &Ctx, scene: &Scene, plan: &Plan) -> MemoryEstimate {
+    pub fn new(ctx: &Ctx, scene: &Scene, plan: &Plan, structures: &Structures) -> MemoryEstimate {
         let level = ctx.level;
         let pixels = (level.width as u64) * (level.height as u64);
         let n = scene.patch_count() as u64;
@@ -87,7 +88,7 @@ impl MemoryEstimate {
             let lens: Vec<f64> = edges.iter().map(|e| e.len()).collect();
             let reach = Reach::new(&lens, &vec![1.0; edges.len()], ctx.falloff, 0.5, bound);
             transport::estimate_entries(
-                &scene.geometry,
+                structures,
                 &scene.patches,
                 quad,
                 ctx.falloff,

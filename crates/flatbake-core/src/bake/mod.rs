@@ -57,6 +57,7 @@ use crate::quality::{Knobs, Quality};
 use crate::transport::kernel::Falloff;
 use crate::transport::solve::SolveError;
 use crate::transport::{FormFactors, Patches};
+use crate::visibility::Structures;
 
 /// The most bounces a truncated series may have (`--bounces`, a palette's
 /// `[bake] bounces`). Each costs one pass over the form factors, and by a
@@ -379,7 +380,10 @@ pub fn bake_with_progress(
     timed(&mut timings.geometry, t);
 
     let mut plan = Plan::new(&ctx, &scene, &mut log);
-    let memory = MemoryEstimate::new(&ctx, &scene, &plan);
+    // The estimate's sample of the form factors' points and the form
+    // factors query through the same structures: built once.
+    let structures = Structures::new(&scene.geometry);
+    let memory = MemoryEstimate::new(&ctx, &scene, &plan, &structures);
     if let Some(limit) = settings.max_memory
         && memory.bytes > limit
     {
@@ -392,12 +396,14 @@ pub fn bake_with_progress(
     let mut transport = if plan.needs_form_factors() {
         progress("form factors");
         let t = Instant::now();
-        let transport = factors::form_factors(&ctx, &scene, &mut plan, &mut log);
+        let transport = factors::form_factors(&ctx, &scene, &mut plan, &structures, &mut log);
         timed(&mut timings.form_factors, t);
         transport
     } else {
         Transport::default()
     };
+    // The gather builds its own (for pixel centres), after the solve.
+    drop(structures);
 
     progress("solve");
     let t = Instant::now();

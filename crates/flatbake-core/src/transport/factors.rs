@@ -11,7 +11,7 @@ use crate::geometry::{Edge, Geometry, Normal};
 use crate::transport::kernel::Reach;
 use crate::transport::kernel::{FactorLine, Falloff, gauss_legendre};
 use crate::transport::{Patches, axis_vec, normal_vec};
-use crate::visibility::{Span, View, VisitStats, for_each_visibility};
+use crate::visibility::{Span, Structures, View, VisitStats, for_each_visibility_counted};
 
 /// The factors from point `x` on an edge with normal `nx` to every patch it
 /// sees, appended to `out` as `(patch, K)`; `spans` is the point's visibility
@@ -295,7 +295,7 @@ fn query_points(
 /// its factors `K(x, j)` towards the patches it sees within their reach. The
 /// one visit behind both [`form_factors`] and [`estimate_entries`].
 fn visit_point_rows(
-    geometry: &Geometry,
+    structures: &Structures,
     patches: &Patches,
     xs: &[f64],
     which: &[usize],
@@ -303,6 +303,7 @@ fn visit_point_rows(
     reach: &Reach,
     f: &(dyn Fn(usize, Vec<(u32, f64)>) + Sync),
 ) -> VisitStats {
+    let geometry = structures.geometry();
     let edges = &geometry.edges;
     let q = xs.len();
     let (pos, pixel) = query_points(geometry, patches, xs, which.iter().copied());
@@ -310,13 +311,15 @@ fn visit_point_rows(
     let view = |i: usize| View::Half(normal(i));
     // Every edge receives light: each is wanted within its reach.
     let reach2 = wanted_reach(reach, |_| true);
-    for_each_visibility(
-        geometry,
-        &pos,
+    for_each_visibility_counted(
+        structures,
+        Some(&pos),
         &pixel,
         &view,
         reach.max,
         Some(&reach2),
+        &|_| {},
+        None,
         &|i, spans| {
             let mut out = Vec::new();
             point_factors(edges, patches, pos[i], normal(i), spans, falloff, &mut out);
@@ -333,7 +336,7 @@ fn visit_point_rows(
 /// lets a bake that would need more memory than the machine has be
 /// refused before it starts.
 pub fn estimate_entries(
-    geometry: &Geometry,
+    structures: &Structures,
     patches: &Patches,
     quad: usize,
     falloff: Option<Falloff>,
@@ -352,11 +355,19 @@ pub fn estimate_entries(
     let picked: Vec<usize> = (0..k).map(|i| i * n / k).collect();
     // Per sampled patch, its points' rows (in point order).
     let seen: Vec<Mutex<Vec<PointRow>>> = (0..k).map(|_| Mutex::new(vec![Vec::new(); q])).collect();
-    visit_point_rows(geometry, patches, xs, &picked, falloff, reach, &|i, row| {
-        seen[i / q]
-            .lock()
-            .expect("no panics while holding the lock")[i % q] = row;
-    });
+    visit_point_rows(
+        structures,
+        patches,
+        xs,
+        &picked,
+        falloff,
+        reach,
+        &|i, row| {
+            seen[i / q]
+                .lock()
+                .expect("no panics while holding the lock")[i % q] = row;
+        },
+    );
     let counted: usize = seen
         .into_iter()
         .map(|s| {
@@ -383,7 +394,7 @@ pub fn estimate_entries(
 /// row of [`SlopeRows`] at once. The merge adds in the points' order, so
 /// `F` does not depend on the order the points were visited in.
 pub fn form_factors(
-    geometry: &Geometry,
+    structures: &Structures,
     patches: &Patches,
     quad: usize,
     falloff: Option<Falloff>,
@@ -398,7 +409,7 @@ pub fn form_factors(
     // how many slivers left it.
     let merged: Vec<OnceLock<Merged>> = (0..n).map(|_| OnceLock::new()).collect();
     let all: Vec<usize> = (0..n).collect();
-    let stats = visit_point_rows(geometry, patches, xs, &all, falloff, reach, &|i, row| {
+    let stats = visit_point_rows(structures, patches, xs, &all, falloff, reach, &|i, row| {
         let (p, k) = (i / q, i % q);
         let complete = {
             let mut slot = pending[p].lock().expect("no panics while holding the lock");
