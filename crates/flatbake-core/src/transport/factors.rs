@@ -15,7 +15,7 @@ use crate::visibility::{Span, Structures, View, VisitStats, for_each_visibility_
 
 /// The factors from point `x` on an edge with normal `nx` to every patch it
 /// sees, appended to `out` as `(patch, K)`; `spans` is the point's visibility
-/// (the falloff reach is applied there, see [`for_each_visibility`]).
+/// (the falloff reach is applied there, see [`for_each_visibility_counted`]).
 pub fn point_factors(
     edges: &[Edge],
     patches: &Patches,
