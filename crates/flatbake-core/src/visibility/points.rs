@@ -10,12 +10,16 @@ use crate::visibility::{
     Blocks, Reachable, Rect, Span, Sweeper, TileTree, View, Viewpoint, Wanted,
 };
 
-/// Query points bucketed by leaf tile, with a summed-area table to answer
-/// "does this rectangle hold any point" in constant time.
+/// Query points bucketed by leaf tile, with a summed-area table of the
+/// leaves' counts to answer "how many points does this tile hold" in
+/// constant time.
 pub struct PointGrid {
-    width: usize,
     leaves_x: usize,
+    leaves_y: usize,
     leaf: usize,
+    /// `sat[ly * (leaves_x + 1) + lx]`: the points of the leaves left of
+    /// `lx` and above `ly`. Per leaf, not per pixel: a pass over a few
+    /// points of a big level does not fill a table the level's size.
     sat: Vec<u32>,
     /// Points of leaf `l` are `order[start[l]..start[l + 1]]`.
     start: Vec<usize>,
@@ -25,19 +29,21 @@ pub struct PointGrid {
 impl PointGrid {
     /// `pixels[i]` is the pixel that query point `i` belongs to.
     pub fn new(width: usize, height: usize, leaf: usize, pixels: &[[i32; 2]]) -> PointGrid {
-        let mut sat = vec![0u32; (width + 1) * (height + 1)];
         let leaves_x = width.div_ceil(leaf);
-        let leaves = leaves_x * height.div_ceil(leaf);
+        let leaves_y = height.div_ceil(leaf);
+        let leaves = leaves_x * leaves_y;
         let mut start = vec![0usize; leaves + 1];
         let leaf_of = |p: [i32; 2]| (p[1] as usize / leaf) * leaves_x + p[0] as usize / leaf;
         for &p in pixels {
-            sat[(p[1] as usize + 1) * (width + 1) + p[0] as usize + 1] += 1;
             start[leaf_of(p) + 1] += 1;
         }
-        for y in 1..=height {
-            for x in 1..=width {
-                let i = y * (width + 1) + x;
-                sat[i] += sat[i - 1] + sat[i - width - 1] - sat[i - width - 2];
+        let w = leaves_x + 1;
+        let mut sat = vec![0u32; w * (leaves_y + 1)];
+        for ly in 0..leaves_y {
+            for lx in 0..leaves_x {
+                let i = (ly + 1) * w + lx + 1;
+                sat[i] =
+                    start[ly * leaves_x + lx + 1] as u32 + sat[i - 1] + sat[i - w] - sat[i - w - 1];
             }
         }
         for l in 0..leaves {
@@ -59,8 +65,8 @@ impl PointGrid {
             });
         }
         PointGrid {
-            width,
             leaves_x,
+            leaves_y,
             leaf,
             sat,
             start,
@@ -68,11 +74,25 @@ impl PointGrid {
         }
     }
 
-    /// Number of points in the rectangle.
+    /// Number of points in the rectangle, whose sides lie on the leaves'
+    /// grid or on the level's right and bottom sides (every tile of a
+    /// [`TileTree`] does).
     pub fn count_in(&self, r: Rect) -> u64 {
-        let w = self.width + 1;
-        let at = |x: i32, y: i32| self.sat[y as usize * w + x as usize] as i64;
-        (at(r.x1, r.y1) - at(r.x0, r.y1) - at(r.x1, r.y0) + at(r.x0, r.y0)) as u64
+        let leaf = self.leaf as i32;
+        debug_assert!(
+            r.x0 % leaf == 0 && r.y0 % leaf == 0,
+            "{r:?} is not on the leaves' grid"
+        );
+        let (x0, y0) = ((r.x0 / leaf) as usize, (r.y0 / leaf) as usize);
+        let x1 = (r.x1.max(0) as usize)
+            .div_ceil(self.leaf)
+            .min(self.leaves_x);
+        let y1 = (r.y1.max(0) as usize)
+            .div_ceil(self.leaf)
+            .min(self.leaves_y);
+        let w = self.leaves_x + 1;
+        let at = |x: usize, y: usize| self.sat[y * w + x] as i64;
+        (at(x1, y1) - at(x0, y1) - at(x1, y0) + at(x0, y0)) as u64
     }
 
     /// Points of the leaf tile whose top-left pixel is `(r.x0, r.y0)`.
@@ -326,5 +346,49 @@ where
     VisitStats {
         culled_pairs: culled_pairs + left_out.into_inner(),
         unreached: unreached.into_inner(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The count of every rectangle a tile tree can ask about (sides on the
+    /// leaves' grid or on the level's right and bottom sides) is the count
+    /// of the points in it, on a level whose sides are not whole leaves.
+    #[test]
+    fn counts_per_leaf_count_the_points_of_every_tile() {
+        let (w, h, leaf) = (37usize, 29usize, 8usize);
+        let pixels: Vec<[i32; 2]> = (0..400u64)
+            .map(|i| {
+                let k = i.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 17;
+                [(k % w as u64) as i32, ((k / w as u64) % h as u64) as i32]
+            })
+            .collect();
+        let grid = PointGrid::new(w, h, leaf, &pixels);
+        let ends = |n: usize| -> Vec<i32> {
+            (1..=n.div_ceil(leaf))
+                .map(|l| (l * leaf).min(n) as i32)
+                .collect()
+        };
+        for x0 in (0..w).step_by(leaf) {
+            for y0 in (0..h).step_by(leaf) {
+                for &x1 in ends(w).iter().filter(|&&x| x > x0 as i32) {
+                    for &y1 in ends(h).iter().filter(|&&y| y > y0 as i32) {
+                        let r = Rect {
+                            x0: x0 as i32,
+                            y0: y0 as i32,
+                            x1,
+                            y1,
+                        };
+                        let want = pixels
+                            .iter()
+                            .filter(|p| r.x0 <= p[0] && p[0] < r.x1 && r.y0 <= p[1] && p[1] < r.y1)
+                            .count() as u64;
+                        assert_eq!(grid.count_in(r), want, "{r:?}");
+                    }
+                }
+            }
+        }
     }
 }
