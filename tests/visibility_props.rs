@@ -7,7 +7,7 @@ use common::*;
 use flatbake_core::geometry::{Edge, trace};
 use flatbake_core::level::Level;
 use flatbake_core::visibility::{
-    Blocks, Rect, Span, Structures, Sweeper, View, Viewpoint, diamond,
+    Blocks, FarWanted, Rect, Span, Structures, Sweeper, View, Viewpoint, Wanted, diamond,
 };
 use proptest::prelude::*;
 
@@ -525,4 +525,83 @@ fn kept_structures_give_the_same_spans() {
     assert_eq!(spans_of(&kept, None, &pixels, None), fresh);
     // No points: nothing to build or visit.
     assert!(spans_of(&Structures::new(&g), None, &[], None).is_empty());
+}
+
+/// A room `side` px square holding one-pixel dots scattered at about one
+/// pixel in `sparse`.
+fn dot_field(side: usize, sparse: u64, seed: u64) -> Level {
+    let rows: Vec<String> = (0..side)
+        .map(|y| {
+            (0..side)
+                .map(|x| {
+                    let h =
+                        ((x * side + y) as u64 ^ seed).wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 40;
+                    let edge = x == 0 || y == 0 || x == side - 1 || y == side - 1;
+                    if edge || (x % 2 == 1 && y % 2 == 1 && h.is_multiple_of(sparse)) {
+                        '#'
+                    } else {
+                        '.'
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    ascii(&refs(&rows), &[('#', wall(0.5))])
+}
+
+/// With [`FarWanted`], a walk leaves the blocks past its radius unwalked
+/// except in the directions of the edges wanted there, and no wanted span
+/// changes: on fields of dots whose reaches are mostly short, with a few
+/// edges of long reach and some with no light, every free pixel centre
+/// (full view) and a point on every edge (half view) gets the spans of the
+/// walk that goes everywhere. Fewer dim spans are counted with it: blocks
+/// were left unwalked.
+#[test]
+fn far_wanted_changes_no_wanted_span() {
+    for (side, sparse, seed) in [(150, 3, 1u64), (130, 6, 2)] {
+        let level = dot_field(side, sparse, seed);
+        let g = trace(&level);
+        let reach2: Vec<f64> = (0..g.edges.len() as u64)
+            .map(|i| {
+                let h = (i ^ seed).wrapping_mul(0x2545_f491_4f6c_dd1d) >> 32;
+                match h % 100 {
+                    0..=9 => -1.0,
+                    10..=12 => 200.0 * 200.0,
+                    r => ((r % 13) as f64).powi(2),
+                }
+            })
+            .collect();
+        let far = FarWanted::new(&g, &reach2).expect("short reaches: the lists are kept");
+        let blocks = Blocks::new(&g);
+        let wanted = Some(Wanted {
+            reach2: &reach2,
+            class: None,
+        });
+        let mut sw = Sweeper::new();
+        let mut points: Vec<Viewpoint> = Vec::new();
+        for y in 0..side {
+            for x in 0..side {
+                if let Some(comp) = g.component_at(x as i64, y as i64) {
+                    let p = [x as f64 + 0.5, y as f64 + 0.5];
+                    points.push(Viewpoint::new(p, View::Full, comp));
+                }
+            }
+        }
+        for e in &g.edges {
+            let (lo, hi) = e.extent();
+            let p = e.point_at(lo + 0.3 * (hi - lo));
+            points.push(Viewpoint::new(p, View::Half(e.normal), e.component));
+        }
+        let (mut dim_all, mut dim_far) = (0, 0);
+        for at in points {
+            let (mut a, mut b): (Vec<Span>, Vec<Span>) = (vec![], vec![]);
+            dim_all += sw.walk_wanted(&blocks, at, f64::INFINITY, &[], wanted, None, &mut a);
+            dim_far += sw.walk_wanted(&blocks, at, f64::INFINITY, &[], wanted, Some(&far), &mut b);
+            assert_eq!(a, b, "dots {side} px, one in {sparse}: point {:?}", at.p);
+        }
+        assert!(
+            dim_far < dim_all,
+            "dots {side} px: no block left unwalked ({dim_far} dim spans, {dim_all} without)"
+        );
+    }
 }

@@ -44,7 +44,7 @@ pub use points::{
     PointGrid, Structures, VisitStats, centre, for_each_visibility, for_each_visibility_counted,
 };
 pub use tiles::{Count, LeafRegions, Region, TileTree};
-pub use walk::Blocks;
+pub use walk::{Blocks, FarWanted};
 
 use crate::geometry::{Edge, Geometry, Normal, Run};
 use crate::visibility::marks::Marks;
@@ -531,6 +531,10 @@ pub struct Sweeper {
     stack: Vec<(u8, u32, u32)>,
     /// Edges already inserted by the current walk.
     inserted: Marks<()>,
+    /// The walk's open directions past [`FarWanted`]'s radius, merged and
+    /// sorted, and the pieces they were read from.
+    open: Vec<(f64, f64)>,
+    far_pieces: Vec<Piece>,
 }
 
 impl Sweeper {

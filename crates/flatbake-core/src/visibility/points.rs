@@ -7,7 +7,7 @@ use std::sync::OnceLock;
 
 use crate::geometry::Geometry;
 use crate::visibility::{
-    Blocks, Reachable, Rect, Span, Sweeper, TileTree, View, Viewpoint, Wanted,
+    Blocks, FarWanted, Reachable, Rect, Span, Sweeper, TileTree, View, Viewpoint, Wanted,
 };
 
 /// Query points bucketed by leaf tile, with a summed-area table of the
@@ -232,6 +232,12 @@ where
     let at = |i: usize| pos.map_or_else(|| centre(pixel[i]), |pos| pos[i]);
     let tree = structures.tree(centres);
     let grid = PointGrid::new(geometry.width, geometry.height, tree.leaf as usize, pixel);
+    // Built by the first point that walks.
+    let far = OnceLock::new();
+    let far = || {
+        far.get_or_init(|| reach2.and_then(|r2| FarWanted::new(geometry, r2)))
+            .as_ref()
+    };
     let unreached = std::sync::atomic::AtomicU64::new(0);
     let left_out = std::sync::atomic::AtomicU64::new(0);
     let culled_pairs = tree.for_each_leaf(&|r| grid.count_in(r), reach_max, &|leaf| {
@@ -314,6 +320,7 @@ where
                                     reach2,
                                     class: None,
                                 }),
+                                far(),
                                 spans,
                             );
                             seeds.clear();

@@ -404,7 +404,166 @@ impl<'g> Blocks<'g> {
         }
     }
 }
+/// The edges with light that a point may want farther than a radius, for
+/// [`Sweeper::walk_wanted`]: past the radius, a walk only needs the
+/// directions in which one of them lies. Anything else there is beyond its
+/// own reach, and what it hides lies farther along the same directions, so
+/// it is beyond its reach too; leaving those directions unwalked changes no
+/// span that is wanted. Where every edge's reach is long (a level of long
+/// walls, or form factors, which reach as far as a unit of radiosity
+/// would), this finds nothing to close and is not built.
+///
+/// An edge is listed when its reach plus its length exceeds the radius (it
+/// may be wanted from a point and have a part farther than the radius),
+/// under every cell of [`FarWanted::CELL`] blocks that has points within
+/// its reach.
+pub struct FarWanted {
+    radius: f64,
+    cell: f64,
+    nx: usize,
+    ny: usize,
+    start: Vec<u32>,
+    list: Vec<u32>,
+}
+
+impl FarWanted {
+    /// Side of a cell, in blocks; the radius is one cell.
+    pub const CELL: i32 = 4;
+    /// A point whose cell lists more edges than this walks everywhere:
+    /// reading their directions would cost more than the walk saves.
+    pub const MOST: usize = 256;
+
+    /// For the squared reaches `reach2` of `g`'s edges (negative: no
+    /// light); `None` when the lists would hold more entries than
+    /// [`FarWanted::MOST`] per cell on average: most points would walk
+    /// everywhere anyway.
+    pub fn new(g: &Geometry, reach2: &[f64]) -> Option<FarWanted> {
+        let cell = (Blocks::SIZE * Self::CELL * g.unit.max(1) as i32) as f64;
+        let radius = cell;
+        let nx = (g.width as f64 / cell).ceil().max(1.0) as usize;
+        let ny = (g.height as f64 / cell).ceil().max(1.0) as usize;
+        // The cells whose points an edge may reach, its reach rounded up.
+        let cells = |e: &Edge, r: f64| {
+            let c = |v: f64, n: usize| ((v / cell).floor().max(0.0) as usize).min(n - 1);
+            let (x0, x1) = (e.a[0].min(e.b[0]) as f64, e.a[0].max(e.b[0]) as f64);
+            let (y0, y1) = (e.a[1].min(e.b[1]) as f64, e.a[1].max(e.b[1]) as f64);
+            (c(x0 - r, nx)..=c(x1 + r, nx), c(y0 - r, ny)..=c(y1 + r, ny))
+        };
+        let far: Vec<(u32, f64)> = g
+            .edges
+            .iter()
+            .zip(reach2)
+            .enumerate()
+            .filter(|&(_, (e, &r2))| r2 >= 0.0 && r2.sqrt() + e.len() > radius)
+            .map(|(ei, (_, &r2))| (ei as u32, r2.sqrt() + 1.0))
+            .collect();
+        let entries: usize = far
+            .iter()
+            .map(|&(ei, r)| {
+                let (xs, ys) = cells(&g.edges[ei as usize], r);
+                xs.count() * ys.count()
+            })
+            .sum();
+        if entries > Self::MOST * nx * ny {
+            return None;
+        }
+        let mut start = vec![0u32; nx * ny + 1];
+        let each = |f: &mut dyn FnMut(usize, u32)| {
+            for &(ei, r) in &far {
+                let (xs, ys) = cells(&g.edges[ei as usize], r);
+                for y in ys {
+                    for x in xs.clone() {
+                        f(y * nx + x, ei);
+                    }
+                }
+            }
+        };
+        each(&mut |c, _| start[c + 1] += 1);
+        for i in 0..nx * ny {
+            start[i + 1] += start[i];
+        }
+        let mut fill = start.clone();
+        let mut list = vec![0u32; entries];
+        each(&mut |c, ei| {
+            list[fill[c] as usize] = ei;
+            fill[c] += 1;
+        });
+        Some(FarWanted {
+            radius,
+            cell,
+            nx,
+            ny,
+            start,
+            list,
+        })
+    }
+
+    /// The edges listed under the cell of `p`.
+    fn at(&self, p: [f64; 2]) -> &[u32] {
+        let c = |v: f64, n: usize| ((v / self.cell).floor().max(0.0) as usize).min(n - 1);
+        let i = c(p[1], self.ny) * self.nx + c(p[0], self.nx);
+        &self.list[self.start[i] as usize..self.start[i + 1] as usize]
+    }
+}
+
 impl Sweeper {
+    /// The directions from `q` in which an edge of `far` is wanted and has
+    /// a part farther than its radius, merged into [`Sweeper::open`], and
+    /// that radius; `None` when they are most of the view, or too many to
+    /// read, and the walk goes on everywhere.
+    fn open_directions(
+        &mut self,
+        far: &FarWanted,
+        q: &Query,
+        edges: &[Edge],
+        reach2: &[f64],
+    ) -> Option<f64> {
+        let list = far.at(q.p);
+        if list.len() > FarWanted::MOST {
+            return None;
+        }
+        let d2 = far.radius * far.radius;
+        self.far_pieces.clear();
+        for &ei in list {
+            let e = &edges[ei as usize];
+            if e.distance_sq(q.p) > reach2[ei as usize] {
+                continue;
+            }
+            // Its farthest point is an end.
+            let dist2 =
+                |v: [i32; 2]| (v[0] as f64 - q.p[0]).powi(2) + (v[1] as f64 - q.p[1]).powi(2);
+            if dist2(e.a).max(dist2(e.b)) <= d2 {
+                continue;
+            }
+            q.pieces(edges, ei, &mut self.far_pieces);
+        }
+        self.open.clear();
+        self.open
+            .extend(self.far_pieces.iter().map(|pc| (pc.ka, pc.kb)));
+        self.open.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+        let mut merged = 0;
+        for i in 0..self.open.len() {
+            let iv = self.open[i];
+            if merged > 0 && iv.0 <= self.open[merged - 1].1 {
+                self.open[merged - 1].1 = self.open[merged - 1].1.max(iv.1);
+            } else {
+                self.open[merged] = iv;
+                merged += 1;
+            }
+        }
+        self.open.truncate(merged);
+        // Mostly open: testing every block costs more than it skips.
+        let open: f64 = self.open.iter().map(|iv| iv.1 - iv.0).sum();
+        (open < 0.9 * q.kmax()).then_some(far.radius)
+    }
+
+    /// Whether `[a, b]` meets an open direction (with a margin for rounding).
+    fn opens(&self, a: f64, b: f64) -> bool {
+        let (a, b) = (a - 1e-9, b + 1e-9);
+        let i = self.open.partition_point(|iv| iv.1 < a);
+        i < self.open.len() && self.open[i].0 <= b
+    }
+
     /// Adds edge `ei`'s visible pieces to the coverage, once per walk.
     #[inline]
     fn insert_edge(&mut self, q: &Query, edges: &[Edge], ei: u32, wanted: Option<Wanted>) {
@@ -434,11 +593,16 @@ impl Sweeper {
         seeds: &[u32],
         out: &mut Vec<Span>,
     ) {
-        self.walk_wanted(blocks, at, reach_max, seeds, None, out);
+        self.walk_wanted(blocks, at, reach_max, seeds, None, None, out);
     }
 
     /// [`Sweeper::walk`], returning only the spans `wanted`; returns how
-    /// many spans of edges with light it left out.
+    /// many spans of edges with light it left out. With `far` (built for
+    /// the same reaches as `wanted`), blocks farther than its radius are
+    /// walked only in the directions of the edges it lists as wanted from
+    /// the point: the spans are the same, and the spans left out that lie
+    /// in the other directions past the radius are not counted.
+    #[allow(clippy::too_many_arguments)]
     pub fn walk_wanted(
         &mut self,
         blocks: &Blocks,
@@ -446,6 +610,7 @@ impl Sweeper {
         reach_max: f64,
         seeds: &[u32],
         wanted: Option<Wanted>,
+        far: Option<&FarWanted>,
         out: &mut Vec<Span>,
     ) -> u64 {
         let (edges, p) = (blocks.edges, at.p);
@@ -456,6 +621,10 @@ impl Sweeper {
         for &ei in seeds {
             self.insert_edge(&q, edges, ei, wanted);
         }
+        let closed_past = match (far, wanted) {
+            (Some(far), Some(w)) => self.open_directions(far, &q, edges, w.reach2),
+            _ => None,
+        };
         let top = blocks.dims.len() - 1;
         self.stack.clear();
         self.stack.push((top as u8, 0, 0));
@@ -477,6 +646,11 @@ impl Sweeper {
                 BoxView::Around => {}
                 BoxView::Behind => continue,
                 BoxView::Ranges(ranges) => {
+                    if closed_past.is_some_and(|d| dmin > d)
+                        && !ranges.iter().any(|&(a, b)| self.opens(a, b))
+                    {
+                        continue;
+                    }
                     if ranges.iter().all(|&(a, b)| self.cover.hides(a, b, dmin)) {
                         continue;
                     }
