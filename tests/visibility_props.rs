@@ -414,17 +414,21 @@ fn a_box_between_a_region_and_an_edge_culls_it() {
 /// A plain room beside a field of pillars behind a wall: its room's points
 /// have short candidate lists, its pillar field's points walk the blocks.
 fn room_and_pillar_field() -> Level {
-    let (w, h) = (120, 64);
+    walled(120, 64, |x, y| {
+        let pillar = x > 34 && (x % 4 == 1) && (y % 5 == 2) && (x + y) % 3 != 0;
+        x == 30 || pillar
+    })
+}
+
+/// A room `w` x `h` px inside a one-pixel wall, with the pixels `solid`
+/// picks painted as wall too.
+fn walled(w: usize, h: usize, solid: impl Fn(usize, usize) -> bool) -> Level {
     let rows: Vec<String> = (0..h)
         .map(|y| {
             (0..w)
                 .map(|x| {
-                    let pillar = x > 34 && (x % 4 == 1) && (y % 5 == 2) && (x + y) % 3 != 0;
-                    if x == 0 || y == 0 || x == w - 1 || y == h - 1 || x == 30 || pillar {
-                        '#'
-                    } else {
-                        '.'
-                    }
+                    let border = x == 0 || y == 0 || x == w - 1 || y == h - 1;
+                    if border || solid(x, y) { '#' } else { '.' }
                 })
                 .collect()
         })
@@ -530,23 +534,10 @@ fn kept_structures_give_the_same_spans() {
 /// A room `side` px square holding one-pixel dots scattered at about one
 /// pixel in `sparse`.
 fn dot_field(side: usize, sparse: u64, seed: u64) -> Level {
-    let rows: Vec<String> = (0..side)
-        .map(|y| {
-            (0..side)
-                .map(|x| {
-                    let h =
-                        ((x * side + y) as u64 ^ seed).wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 40;
-                    let edge = x == 0 || y == 0 || x == side - 1 || y == side - 1;
-                    if edge || (x % 2 == 1 && y % 2 == 1 && h.is_multiple_of(sparse)) {
-                        '#'
-                    } else {
-                        '.'
-                    }
-                })
-                .collect()
-        })
-        .collect();
-    ascii(&refs(&rows), &[('#', wall(0.5))])
+    walled(side, side, |x, y| {
+        let h = ((x * side + y) as u64 ^ seed).wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 40;
+        x % 2 == 1 && y % 2 == 1 && h.is_multiple_of(sparse)
+    })
 }
 
 /// With [`FarWanted`], a walk leaves the blocks past its radius unwalked
