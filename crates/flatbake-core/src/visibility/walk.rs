@@ -449,24 +449,27 @@ impl FarWanted {
             let (y0, y1) = (e.a[1].min(e.b[1]) as f64, e.a[1].max(e.b[1]) as f64);
             (c(x0 - r, nx)..=c(x1 + r, nx), c(y0 - r, ny)..=c(y1 + r, ny))
         };
+        // The listed edges and their reach, rounded up. Counted first and
+        // given up on as soon as the lists grow too long (form factors list
+        // every edge of the level: no vector of them is built).
+        let listed = |(ei, (e, &r2)): (usize, (&Edge, &f64))| {
+            (r2 >= 0.0 && r2.sqrt() + e.len() > radius).then(|| (ei as u32, r2.sqrt() + 1.0))
+        };
+        let (mut entries, budget) = (0usize, Self::MOST * nx * ny);
+        for (ei, r) in g.edges.iter().zip(reach2).enumerate().filter_map(listed) {
+            let (xs, ys) = cells(&g.edges[ei as usize], r);
+            entries += xs.count() * ys.count();
+            if entries > budget {
+                return None;
+            }
+        }
         let far: Vec<(u32, f64)> = g
             .edges
             .iter()
             .zip(reach2)
             .enumerate()
-            .filter(|&(_, (e, &r2))| r2 >= 0.0 && r2.sqrt() + e.len() > radius)
-            .map(|(ei, (_, &r2))| (ei as u32, r2.sqrt() + 1.0))
+            .filter_map(listed)
             .collect();
-        let entries: usize = far
-            .iter()
-            .map(|&(ei, r)| {
-                let (xs, ys) = cells(&g.edges[ei as usize], r);
-                xs.count() * ys.count()
-            })
-            .sum();
-        if entries > Self::MOST * nx * ny {
-            return None;
-        }
         let mut start = vec![0u32; nx * ny + 1];
         let each = |f: &mut dyn FnMut(usize, u32)| {
             for &(ei, r) in &far {
