@@ -10,7 +10,7 @@ use crate::transport::kernel::{Falloff, GatherLine, GatherPoints};
 use crate::transport::{Patches, wanted_reach};
 use crate::visibility::marks::Marks;
 use crate::visibility::{
-    Span, Structures, TileTree, View, VisitStats, centre, for_each_visibility_counted,
+    Reaches, Span, Structures, TileTree, View, VisitStats, centre, for_each_visibility_counted,
 };
 
 use super::patch_tree::node_range;
@@ -575,7 +575,7 @@ pub fn gather_with_moments(
         structures: &structures,
         light: &light,
         reach_max: reach.max,
-        reach2: &reach2,
+        reaches: Reaches::new(&reach2),
         tally: &tally,
         directional: directional && kernel == Kernel::Flatland,
     };
@@ -615,7 +615,9 @@ pub(super) struct Exact<'a> {
     pub structures: &'a Structures<'a>,
     pub light: &'a Lighting<'a>,
     pub reach_max: f64,
-    pub reach2: &'a [f64],
+    /// Per edge, its squared reach (see [`crate::visibility::Wanted`]),
+    /// shared by every pass.
+    pub reaches: Reaches<'a>,
     tally: &'a Tally<'a>,
     /// Also the moments ([`Pass::moments`]).
     pub directional: bool,
@@ -686,7 +688,7 @@ impl Exact<'_> {
             pixels,
             &|_| View::Full,
             self.reach_max,
-            Some(self.reach2),
+            Some(&self.reaches),
             &|n| self.tally.add(n),
             defer,
             &|i, spans| {

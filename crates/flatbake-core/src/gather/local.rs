@@ -473,7 +473,7 @@ impl Lists {
                             &b.list,
                             Viewpoint::new(p, View::Full, comp),
                             Some(Wanted {
-                                reach2: exact.reach2,
+                                reach2: exact.reaches.squared,
                                 class: None,
                             }),
                             &mut b.spans,
@@ -529,7 +529,7 @@ fn within_reach(exact: &Exact, p: [f64; 2], spans: &[Span], out: &mut Vec<Span>)
     let mut dropped = 0;
     out.clear();
     for s in spans {
-        let r2 = exact.reach2[s.edge as usize];
+        let r2 = exact.reaches.squared[s.edge as usize];
         if r2 >= 0.0 && edges[s.edge as usize].distance_sq(p) <= r2 {
             out.push(*s);
         } else if r2 >= 0.0 {

@@ -11,7 +11,7 @@ use crate::geometry::{Edge, Geometry, Normal};
 use crate::transport::kernel::Reach;
 use crate::transport::kernel::{FactorLine, Falloff, gauss_legendre};
 use crate::transport::{Patches, axis_vec, normal_vec};
-use crate::visibility::{Span, Structures, View, VisitStats, for_each_visibility_counted};
+use crate::visibility::{Reaches, Span, Structures, View, VisitStats, for_each_visibility_counted};
 
 /// The factors from point `x` on an edge with normal `nx` to every patch it
 /// sees, appended to `out` as `(patch, K)`; `spans` is the point's visibility
@@ -317,7 +317,7 @@ fn visit_point_rows(
         &pixel,
         &view,
         reach.max,
-        Some(&reach2),
+        Some(&Reaches::new(&reach2)),
         &|_| {},
         None,
         &|i, spans| {

@@ -44,7 +44,7 @@ pub use points::{
     PointGrid, Structures, VisitStats, centre, for_each_visibility, for_each_visibility_counted,
 };
 pub use tiles::{Count, LeafRegions, Region, TileTree};
-pub use walk::{Blocks, FarWanted};
+pub use walk::{Blocks, FarWanted, Reaches};
 
 use crate::geometry::{Edge, Geometry, Normal, Run};
 use crate::visibility::marks::Marks;

@@ -7,7 +7,7 @@ use std::sync::OnceLock;
 
 use crate::geometry::Geometry;
 use crate::visibility::{
-    Blocks, FarWanted, Reachable, Rect, Span, Sweeper, TileTree, View, Viewpoint, Wanted,
+    Blocks, Reachable, Reaches, Rect, Span, Sweeper, TileTree, View, Viewpoint, Wanted,
 };
 
 /// Query points bucketed by leaf tile, with a summed-area table of the
@@ -188,7 +188,7 @@ where
         pixel,
         view,
         reach_max,
-        reach2,
+        reach2.map(Reaches::new).as_ref(),
         &|_| {},
         None,
         f,
@@ -207,7 +207,8 @@ pub fn centre(px: [i32; 2]) -> [f64; 2] {
 /// blocks (no short candidate list in its leaf tile, or a long list that
 /// culling left almost whole) is passed to `defer` instead of queried: `f`
 /// is not called for it and `done` does not count it. The level and what
-/// is built to query it come with `structures`, kept from call to call.
+/// is built to query it come with `structures`, kept from call to call, and
+/// the reaches (see [`Wanted`]) with `reaches`, kept likewise.
 #[allow(clippy::too_many_arguments)]
 pub fn for_each_visibility_counted<F>(
     structures: &Structures,
@@ -215,7 +216,7 @@ pub fn for_each_visibility_counted<F>(
     pixel: &[[i32; 2]],
     view: &(dyn Fn(usize) -> View + Sync),
     reach_max: f64,
-    reach2: Option<&[f64]>,
+    reaches: Option<&Reaches>,
     done: &(dyn Fn(usize) + Sync),
     defer: Option<&(dyn Fn(usize) + Sync)>,
     f: &F,
@@ -232,12 +233,7 @@ where
     let at = |i: usize| pos.map_or_else(|| centre(pixel[i]), |pos| pos[i]);
     let tree = structures.tree(centres);
     let grid = PointGrid::new(geometry.width, geometry.height, tree.leaf as usize, pixel);
-    // Built by the first point that walks.
-    let far = OnceLock::new();
-    let far = || {
-        far.get_or_init(|| reach2.and_then(|r2| FarWanted::new(geometry, r2)))
-            .as_ref()
-    };
+    let reach2 = reaches.map(|r| r.squared);
     let unreached = std::sync::atomic::AtomicU64::new(0);
     let left_out = std::sync::atomic::AtomicU64::new(0);
     let culled_pairs = tree.for_each_leaf(&|r| grid.count_in(r), reach_max, &|leaf| {
@@ -320,7 +316,7 @@ where
                                     reach2,
                                     class: None,
                                 }),
-                                far(),
+                                reaches.and_then(|r| r.far(geometry)),
                                 spans,
                             );
                             seeds.clear();

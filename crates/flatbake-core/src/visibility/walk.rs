@@ -1,6 +1,8 @@
 //! The output-sensitive walk: blocks of edges from near to far over an
 //! angular coverage buffer that skips what nearer surfaces already hide.
 
+use std::sync::OnceLock;
+
 use super::*;
 
 /// How an axis-aligned box lies as seen from a query.
@@ -506,6 +508,34 @@ impl FarWanted {
         let c = |v: f64, n: usize| ((v / self.cell).floor().max(0.0) as usize).min(n - 1);
         let i = c(p[1], self.ny) * self.nx + c(p[0], self.nx);
         &self.list[self.start[i] as usize..self.start[i + 1] as usize]
+    }
+}
+
+/// Per edge, the squared distance within which its spans are wanted
+/// (negative: the edge has no light), for [`crate::visibility::for_each_visibility_counted`],
+/// with the [`FarWanted`] built from it on the first walk and then kept:
+/// the passes of a gather, which share one `Reaches`, build it once.
+pub struct Reaches<'a> {
+    /// Squared reach per edge.
+    pub squared: &'a [f64],
+    far: OnceLock<Option<FarWanted>>,
+}
+
+impl<'a> Reaches<'a> {
+    /// Nothing built yet.
+    pub fn new(squared: &'a [f64]) -> Reaches<'a> {
+        Reaches {
+            squared,
+            far: OnceLock::new(),
+        }
+    }
+
+    /// The edges a point of `g` may want past [`FarWanted`]'s radius, if
+    /// they are worth listing.
+    pub(super) fn far(&self, g: &Geometry) -> Option<&FarWanted> {
+        self.far
+            .get_or_init(|| FarWanted::new(g, self.squared))
+            .as_ref()
     }
 }
 
