@@ -532,9 +532,8 @@ pub struct Sweeper {
     /// Edges already inserted by the current walk.
     inserted: Marks<()>,
     /// The walk's open directions past [`FarWanted`]'s radius, merged and
-    /// sorted, and the pieces they were read from.
+    /// sorted.
     open: Vec<(f64, f64)>,
-    far_pieces: Vec<Piece>,
 }
 
 impl Sweeper {

@@ -412,26 +412,41 @@ impl<'g> Blocks<'g> {
 /// own reach, and what it hides lies farther along the same directions, so
 /// it is beyond its reach too; leaving those directions unwalked changes no
 /// span that is wanted. Where every edge's reach is long (a level of long
-/// walls, or form factors, which reach as far as a unit of radiosity
-/// would), this finds nothing to close and is not built.
+/// walls, or form factors at a unit of radiosity), this finds nothing to
+/// close and is not built.
 ///
 /// An edge is listed when its reach plus its length exceeds the radius (it
-/// may be wanted from a point and have a part farther than the radius),
-/// under every cell of [`FarWanted::CELL`] blocks that has points within
-/// its reach.
+/// may be wanted from a point and have a part farther than the radius).
+/// Listed edges are grouped by the [`FarWanted::GROUP`] square their
+/// middle lies in: a group is the box around its edges and the longest of
+/// their reaches, and its directions from a point cover theirs. Each group is listed under every
+/// cell of [`FarWanted::CELL`] blocks that has points within its reach.
 pub struct FarWanted {
     radius: f64,
     cell: f64,
     nx: usize,
     ny: usize,
+    groups: Vec<Group>,
     start: Vec<u32>,
     list: Vec<u32>,
+}
+
+/// Listed edges of one block: the box around them (`x0, y0, x1, y1`) and
+/// the longest of their reaches, rounded up.
+#[derive(Clone, Copy)]
+struct Group {
+    bbox: [f64; 4],
+    reach: f64,
 }
 
 impl FarWanted {
     /// Side of a cell, in blocks; the radius is one cell.
     pub const CELL: i32 = 4;
-    /// A point whose cell lists more edges than this walks everywhere:
+    /// Side of the squares whose edges are grouped, in pixels: the box of
+    /// a group covers little more than its edges (one one-pixel dot), and
+    /// the lists are several times shorter than lists of edges.
+    pub const GROUP: f64 = 2.0;
+    /// A point whose cell lists more groups than this walks everywhere:
     /// reading their directions would cost more than the walk saves.
     pub const MOST: usize = 256;
 
@@ -441,69 +456,92 @@ impl FarWanted {
     /// everywhere anyway.
     pub fn new(g: &Geometry, reach2: &[f64]) -> Option<FarWanted> {
         let cell = (Blocks::SIZE * Self::CELL * g.unit.max(1) as i32) as f64;
+        let block = Self::GROUP * g.unit.max(1) as f64;
         let radius = cell;
         let nx = (g.width as f64 / cell).ceil().max(1.0) as usize;
         let ny = (g.height as f64 / cell).ceil().max(1.0) as usize;
-        // The cells whose points an edge may reach, its reach rounded up.
-        let cells = |e: &Edge, r: f64| {
-            let c = |v: f64, n: usize| ((v / cell).floor().max(0.0) as usize).min(n - 1);
+        // The groups, by the block of their edges' middles.
+        let (bx, by) = (
+            (g.width as f64 / block).ceil().max(1.0) as usize,
+            (g.height as f64 / block).ceil().max(1.0) as usize,
+        );
+        let mut of_block: Vec<u32> = vec![u32::MAX; bx * by];
+        let mut groups: Vec<Group> = Vec::new();
+        for (e, &r2) in g.edges.iter().zip(reach2) {
+            if r2 < 0.0 || r2.sqrt() + e.len() <= radius {
+                continue;
+            }
             let (x0, x1) = (e.a[0].min(e.b[0]) as f64, e.a[0].max(e.b[0]) as f64);
             let (y0, y1) = (e.a[1].min(e.b[1]) as f64, e.a[1].max(e.b[1]) as f64);
+            let c = |v: f64, n: usize| ((v / block).floor().max(0.0) as usize).min(n - 1);
+            let b = c(0.5 * (y0 + y1), by) * bx + c(0.5 * (x0 + x1), bx);
+            let reach = r2.sqrt() + 1.0;
+            if of_block[b] == u32::MAX {
+                of_block[b] = groups.len() as u32;
+                groups.push(Group {
+                    bbox: [x0, y0, x1, y1],
+                    reach,
+                });
+            } else {
+                let gr = &mut groups[of_block[b] as usize];
+                gr.bbox = [
+                    gr.bbox[0].min(x0),
+                    gr.bbox[1].min(y0),
+                    gr.bbox[2].max(x1),
+                    gr.bbox[3].max(y1),
+                ];
+                gr.reach = gr.reach.max(reach);
+            }
+        }
+        drop(of_block);
+        // The cells whose points a group may reach.
+        let cells = |gr: &Group| {
+            let c = |v: f64, n: usize| ((v / cell).floor().max(0.0) as usize).min(n - 1);
+            let [x0, y0, x1, y1] = gr.bbox;
+            let r = gr.reach;
             (c(x0 - r, nx)..=c(x1 + r, nx), c(y0 - r, ny)..=c(y1 + r, ny))
         };
-        // The listed edges and their reach, rounded up. Counted first and
-        // given up on as soon as the lists grow too long (form factors list
-        // every edge of the level: no vector of them is built).
-        let listed = |(ei, (e, &r2)): (usize, (&Edge, &f64))| {
-            (r2 >= 0.0 && r2.sqrt() + e.len() > radius).then(|| (ei as u32, r2.sqrt() + 1.0))
-        };
+        let mut start = vec![0u32; nx * ny + 1];
         let (mut entries, budget) = (0usize, Self::MOST * nx * ny);
-        for (ei, r) in g.edges.iter().zip(reach2).enumerate().filter_map(listed) {
-            let (xs, ys) = cells(&g.edges[ei as usize], r);
-            entries += xs.count() * ys.count();
+        for gr in &groups {
+            let (xs, ys) = cells(gr);
+            entries += xs.clone().count() * ys.clone().count();
             if entries > budget {
                 return None;
             }
-        }
-        let far: Vec<(u32, f64)> = g
-            .edges
-            .iter()
-            .zip(reach2)
-            .enumerate()
-            .filter_map(listed)
-            .collect();
-        let mut start = vec![0u32; nx * ny + 1];
-        let each = |f: &mut dyn FnMut(usize, u32)| {
-            for &(ei, r) in &far {
-                let (xs, ys) = cells(&g.edges[ei as usize], r);
-                for y in ys {
-                    for x in xs.clone() {
-                        f(y * nx + x, ei);
-                    }
+            for y in ys {
+                for x in xs.clone() {
+                    start[y * nx + x + 1] += 1;
                 }
             }
-        };
-        each(&mut |c, _| start[c + 1] += 1);
+        }
         for i in 0..nx * ny {
             start[i + 1] += start[i];
         }
         let mut fill = start.clone();
         let mut list = vec![0u32; entries];
-        each(&mut |c, ei| {
-            list[fill[c] as usize] = ei;
-            fill[c] += 1;
-        });
+        for (gi, gr) in groups.iter().enumerate() {
+            let (xs, ys) = cells(gr);
+            for y in ys {
+                for x in xs.clone() {
+                    let c = y * nx + x;
+                    list[fill[c] as usize] = gi as u32;
+                    fill[c] += 1;
+                }
+            }
+        }
         Some(FarWanted {
             radius,
             cell,
             nx,
             ny,
+            groups,
             start,
             list,
         })
     }
 
-    /// The edges listed under the cell of `p`.
+    /// The groups listed under the cell of `p`.
     fn at(&self, p: [f64; 2]) -> &[u32] {
         let c = |v: f64, n: usize| ((v / self.cell).floor().max(0.0) as usize).min(n - 1);
         let i = c(p[1], self.ny) * self.nx + c(p[0], self.nx);
@@ -544,35 +582,39 @@ impl Sweeper {
     /// a part farther than its radius, merged into [`Sweeper::open`], and
     /// that radius; `None` when they are most of the view, or too many to
     /// read, and the walk goes on everywhere.
-    fn open_directions(
-        &mut self,
-        far: &FarWanted,
-        q: &Query,
-        edges: &[Edge],
-        reach2: &[f64],
-    ) -> Option<f64> {
+    fn open_directions(&mut self, far: &FarWanted, q: &Query) -> Option<f64> {
         let list = far.at(q.p);
         if list.len() > FarWanted::MOST {
             return None;
         }
         let d2 = far.radius * far.radius;
-        self.far_pieces.clear();
-        for &ei in list {
-            let e = &edges[ei as usize];
-            if e.distance_sq(q.p) > reach2[ei as usize] {
-                continue;
-            }
-            // Its farthest point is an end.
-            let dist2 =
-                |v: [i32; 2]| (v[0] as f64 - q.p[0]).powi(2) + (v[1] as f64 - q.p[1]).powi(2);
-            if dist2(e.a).max(dist2(e.b)) <= d2 {
-                continue;
-            }
-            q.pieces(edges, ei, &mut self.far_pieces);
-        }
         self.open.clear();
-        self.open
-            .extend(self.far_pieces.iter().map(|pc| (pc.ka, pc.kb)));
+        let p = q.p;
+        for &gi in list {
+            let gr = &far.groups[gi as usize];
+            let [x0, y0, x1, y1] = gr.bbox;
+            let dx = (x0 - p[0]).max(p[0] - x1).max(0.0);
+            let dy = (y0 - p[1]).max(p[1] - y1).max(0.0);
+            if dx * dx + dy * dy > gr.reach * gr.reach {
+                continue;
+            }
+            // Its farthest point is a corner.
+            let fx = (x0 - p[0]).abs().max((x1 - p[0]).abs());
+            let fy = (y0 - p[1]).abs().max((y1 - p[1]).abs());
+            if fx * fx + fy * fy <= d2 {
+                continue;
+            }
+            match box_range(q, x0, y0, x1, y1) {
+                BoxView::Around => return None,
+                BoxView::Behind => {}
+                BoxView::Ranges([r0, r1]) => {
+                    self.open.push(r0);
+                    if r1 != r0 {
+                        self.open.push(r1);
+                    }
+                }
+            }
+        }
         self.open.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
         let mut merged = 0;
         for i in 0..self.open.len() {
@@ -655,7 +697,7 @@ impl Sweeper {
             self.insert_edge(&q, edges, ei, wanted);
         }
         let closed_past = match (far, wanted) {
-            (Some(far), Some(w)) => self.open_directions(far, &q, edges, w.reach2),
+            (Some(far), Some(_)) => self.open_directions(far, &q),
             _ => None,
         };
         let top = blocks.dims.len() - 1;
