@@ -417,3 +417,55 @@ fn slivers_keep_row_sums_and_reciprocity_and_move_little_light() {
     let d = rel_rms(&level, &b, &full);
     assert!(d < 1e-4, "slivers moved the light by {d:e} relative RMS");
 }
+
+/// Form-factor reach in passes (docs/transport.md, Reach and culling): on
+/// a field of one-pixel dots with falloff, whose light fades within a few
+/// dots of the lamps, the form factors follow each edge's solved light.
+/// The report says how many passes were run. The factors are far fewer
+/// than at a unit of radiosity, and the light moves by far less than
+/// `normal`'s error budget. The energy still balances, and nothing is NaN.
+/// Without falloff, no passes are run.
+#[test]
+fn form_factor_reach_follows_the_solved_light() {
+    let (level, palette) = flatbake_synth::dots(96, 5).level().expect("palette");
+    let mut s = Settings::new(Quality::Normal);
+    s.falloff = palette.settings.falloff;
+    assert!(s.falloff.is_some(), "the dots have falloff");
+    s.reach_passes_from = 0;
+    let passes = bake(&level, &s, &|_| {}).expect("bakes");
+    let mut unit = s.clone();
+    unit.reach_passes_from = u64::MAX;
+    let whole = bake(&level, &unit, &|_| {}).expect("bakes");
+    assert!(
+        skipped(&passes, "form-factor reach"),
+        "{:?}",
+        passes.report.skipped
+    );
+    assert!(!skipped(&whole, "form-factor reach"));
+    let (few, all) = (
+        passes.report.counts.form_factor_entries,
+        whole.report.counts.form_factor_entries,
+    );
+    eprintln!("form-factor entries: {few} with passes, {all} at a unit of radiosity");
+    assert!(5 * few < all, "{few} entries vs {all}");
+    assert!(
+        passes
+            .lightmap
+            .rgb
+            .iter()
+            .all(|p| p.iter().all(|v| v.is_finite()))
+    );
+    let d = rel_rms(&level, &passes, &whole);
+    eprintln!("passes moved the light by {d:e} relative RMS");
+    assert!(d > 0.0 && d < 2e-3, "passes moved the light by {d:e}");
+    let e = &passes.report.energy;
+    assert!(
+        (e.emitted - e.absorbed - e.escaped).abs() <= 1e-6 * e.emitted,
+        "{e:?}"
+    );
+    // No falloff: every factor is computed, as without passes.
+    let mut none = s.clone();
+    none.falloff = None;
+    let flat = bake(&level, &none, &|_| {}).expect("bakes");
+    assert!(!skipped(&flat, "form-factor reach"));
+}

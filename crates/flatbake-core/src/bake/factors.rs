@@ -3,8 +3,10 @@
 //! factors with `--kernel paper`. With F known, a bounce that no reflecting
 //! patch can receive (no emitter in sight) is dropped from the plan.
 
+use super::memory::SAMPLED_PATCHES;
 use super::{Ctx, Log, Plan, Scene};
 use crate::gather::Kernel;
+use crate::geometry::Geometry;
 use crate::transport::kernel::Reach;
 use crate::transport::{self, FormFactors, SlopeRows};
 use crate::visibility::Structures;
@@ -36,33 +38,32 @@ impl Transport {
     }
 }
 
-/// Builds F for `scene` with the settings' kernel; drops the bounces that
-/// no reflecting patch can receive from `plan` (recorded in `log`).
+/// Builds F for `scene` with the settings' kernel, with the reach of
+/// `passes`' current pass if given (else for a unit of radiosity); drops
+/// the bounces that no reflecting patch can receive from `plan` (recorded
+/// in `log`).
 pub fn form_factors(
     ctx: &Ctx,
     scene: &Scene,
     plan: &mut Plan,
     structures: &Structures,
+    passes: Option<&ReachPasses>,
     log: &mut Log,
 ) -> Transport {
     let (geometry, patches) = (&scene.geometry, &scene.patches);
-    let edges = &geometry.edges;
     let mut out = Transport::default();
     let lit = match ctx.settings.kernel {
         Kernel::Flatland => {
-            // Factors below the preset's bound are not computed (falloff only).
-            let lens: Vec<f64> = edges.iter().map(|e| e.len()).collect();
-            let reach = Reach::new(
-                &lens,
-                &vec![1.0; edges.len()],
-                ctx.falloff,
-                0.5,
-                ctx.reach_bound,
-            );
+            // Factors below the preset's bound are not computed (falloff
+            // only): for a unit of radiosity, or as the passes say.
+            let (reach, quad) = match passes {
+                Some(p) => (p.reach.clone(), p.quad(ctx)),
+                None => (unit_reach(ctx, geometry), ctx.settings.knobs.quad),
+            };
             let (ff, slopes, stats) = transport::form_factors(
                 structures,
                 patches,
-                ctx.settings.knobs.quad,
+                quad,
                 ctx.falloff,
                 &reach,
                 ctx.reach_bound,
@@ -126,4 +127,199 @@ fn sees_light(
         }),
         sees(response_channels, &|j| scene.emitter_patch[j]),
     )
+}
+
+/// The form factors' reach for a unit of radiosity on every edge: a pair
+/// is left out where its factor is below the preset's bound.
+pub fn unit_reach(ctx: &Ctx, geometry: &Geometry) -> Reach {
+    let lens: Vec<f64> = geometry.edges.iter().map(|e| e.len()).collect();
+    Reach::new(
+        &lens,
+        &vec![1.0; lens.len()],
+        ctx.falloff,
+        0.5,
+        ctx.reach_bound,
+    )
+}
+
+/// The form factors' reach under falloff, made to follow each edge's own
+/// light, found in passes of form factors and solve (docs/transport.md,
+/// "Reach and culling"). A pair is left out where its factor times the
+/// edge's solved radiosity (relative to the emission the gather's reach is
+/// relative to) is below the preset's bound: the gather's own rule. Since
+/// the radiosity is only known once the factors are solved, the passes
+/// are:
+///
+/// 1. an estimate: one quadrature point per patch, emitters reaching as
+///    far as a unit of radiosity, every other edge at most
+///    [`ReachPasses::ESTIMATE_REACH`];
+/// 2. the reach [`ReachPasses::MARGIN`] times the estimate's radiosity
+///    calls for;
+/// 3. after a pass whose own solved radiosity calls for more reach on some
+///    edge than it had, those edges' reach grown the same way; after
+///    [`ReachPasses::MOST`] such passes, a pass at a unit of radiosity, as
+///    without passes.
+///
+/// A pass stands once no edge's solved radiosity calls for more reach than
+/// the pass gave it (never the estimate): then every pair left out is below
+/// the bound at the radiosity it is solved with.
+pub struct ReachPasses {
+    /// The current pass's reach.
+    reach: Reach,
+    /// The radiosity the current pass's reach is for (relative; empty for
+    /// the estimate).
+    relative: Vec<f64>,
+    /// Passes run, the current one included.
+    pub passes: usize,
+    /// The current pass reaches as far as a unit of radiosity.
+    unit: bool,
+    /// The memory estimate's entries at a unit of radiosity.
+    unit_entries: u64,
+}
+
+impl ReachPasses {
+    /// How much more radiosity than a pass found the next pass's reach is
+    /// for.
+    pub const MARGIN: f64 = 16.0;
+    /// The estimate's reach for edges that do not emit, in pixels of the
+    /// level (less than the walk's [`FarWanted`](crate::visibility::FarWanted)
+    /// radius, so that the estimate walks past it only towards emitters).
+    pub const ESTIMATE_REACH: f64 = 16.0;
+    /// Passes after the estimate before falling back to a unit of
+    /// radiosity.
+    pub const MOST: usize = 2;
+    /// The least radiosity (relative, in units of the preset's bound) any
+    /// edge's reach is for after the estimate: a unit edge then reaches
+    /// about half this many pixels. An edge the estimate finds dark may
+    /// still get faint light from farther than it looked; this covers it
+    /// without another pass.
+    pub const FLOOR: f64 = 2.0;
+    /// A pass after the estimate is run only when a sample of its patches
+    /// has less than this part of the factors a unit of radiosity gives
+    /// them; else the next pass is at a unit of radiosity.
+    pub const WORTH: f64 = 0.1;
+    /// The form factors of a unit of radiosity (the memory estimate's
+    /// entries) below which no estimate is run by default
+    /// ([`Settings::reach_passes_from`](super::Settings::reach_passes_from)):
+    /// they are cheap anyway.
+    pub const FROM_ENTRIES: u64 = 8_000_000;
+
+    /// The estimate pass, where it can save anything: with falloff, a
+    /// reach bound, the flatland kernel, and at least
+    /// [`Settings::reach_passes_from`](super::Settings::reach_passes_from)
+    /// entries at a unit of radiosity (`unit_entries`, the memory
+    /// estimate's count).
+    pub fn new(ctx: &Ctx, scene: &Scene, unit_entries: u64) -> Option<ReachPasses> {
+        if unit_entries < ctx.settings.reach_passes_from
+            || ctx.falloff.is_none()
+            || ctx.reach_bound <= 0.0
+            || ctx.settings.kernel != Kernel::Flatland
+        {
+            return None;
+        }
+        let geometry = &scene.geometry;
+        let mut reach = unit_reach(ctx, geometry);
+        let most = Self::ESTIMATE_REACH * geometry.unit.max(1) as f64;
+        for (e, r) in reach.radius.iter_mut().enumerate() {
+            let emits = scene
+                .patches
+                .of_edge(e)
+                .any(|p| scene.emitter_patch[p] || (0..3).any(|c| scene.emit[c][p] > 0.0));
+            if !emits {
+                *r = r.min(most);
+            }
+        }
+        reach.max = reach.radius.iter().copied().fold(0.0, f64::max);
+        Some(ReachPasses {
+            reach,
+            relative: Vec::new(),
+            passes: 1,
+            unit: false,
+            unit_entries,
+        })
+    }
+
+    /// Quadrature points per patch for the current pass.
+    fn quad(&self, ctx: &Ctx) -> usize {
+        if self.relative.is_empty() && !self.unit {
+            1
+        } else {
+            ctx.settings.knobs.quad
+        }
+    }
+
+    /// After a pass whose solve gave `need` (per edge, its light relative
+    /// to the emission the gather's reach is relative to, as the gather
+    /// stage computes it): `true` and the next pass set up when the pass
+    /// does not stand, `false` when it does.
+    pub fn next(
+        &mut self,
+        ctx: &Ctx,
+        scene: &Scene,
+        structures: &Structures,
+        need: &[f64],
+    ) -> bool {
+        if self.unit {
+            return false;
+        }
+        let lens: Vec<f64> = scene.geometry.edges.iter().map(|e| e.len()).collect();
+        let reach_for = |b: &[f64]| Reach::new(&lens, b, ctx.falloff, 0.5, ctx.reach_bound);
+        let capped = |b: f64| b.min(1.0);
+        if self.relative.is_empty() {
+            // After the estimate: the reach its radiosity calls for, worth
+            // a pass only where a sample of patches has far fewer factors
+            // with it than at a unit of radiosity (the memory estimate's
+            // count, sampled the same way).
+            let floor = Self::FLOOR * ctx.reach_bound;
+            self.relative = need
+                .iter()
+                .map(|&b| capped(Self::MARGIN * b).max(floor))
+                .collect();
+            let ours = transport::estimate_entries(
+                structures,
+                &scene.patches,
+                ctx.settings.knobs.quad,
+                ctx.falloff,
+                &reach_for(&self.relative),
+                ctx.reach_bound,
+                SAMPLED_PATCHES,
+            );
+            if ours as f64 > Self::WORTH * self.unit_entries as f64 {
+                return self.at_unit(ctx, scene);
+            }
+        } else {
+            // Edges whose light reaches farther than the pass gave them.
+            // (Only where the radiosity is above what the reach was for can
+            // it call for more: the others are left at 0.)
+            let above: Vec<f64> = need
+                .iter()
+                .zip(&self.relative)
+                .map(|(&b, &r)| if capped(b) > r { capped(b) } else { 0.0 })
+                .collect();
+            let wanted = reach_for(&above);
+            let short: Vec<usize> = (0..need.len())
+                .filter(|&e| wanted.radius[e] > self.reach.radius[e] + 1e-9)
+                .collect();
+            if short.is_empty() {
+                return false;
+            }
+            if self.passes > Self::MOST {
+                return self.at_unit(ctx, scene);
+            }
+            for e in short {
+                self.relative[e] = self.relative[e].max(capped(Self::MARGIN * need[e]));
+            }
+        }
+        self.reach = reach_for(&self.relative);
+        self.passes += 1;
+        true
+    }
+
+    /// Sets up the next pass at a unit of radiosity, which stands.
+    fn at_unit(&mut self, ctx: &Ctx, scene: &Scene) -> bool {
+        self.reach = unit_reach(ctx, &scene.geometry);
+        self.unit = true;
+        self.passes += 1;
+        true
+    }
 }

@@ -113,12 +113,8 @@ impl ReachRule {
     /// is exactly the bake of that emission. Each culled pair still stays
     /// below reach_bound x its emitter's emission.
     fn new(ctx: &Ctx, scene: &Scene, solved: &Solved, rad: &Radiosity) -> ReachRule {
-        let kk = rad.components;
-        let (decide, threshold) = if solved.responses.is_empty() {
-            (0..kk, ctx.reach_bound * brightest_emission(ctx, scene))
-        } else {
-            (solved.class_b.len()..kk, ctx.reach_bound * TRACED_EMISSION)
-        };
+        let (decide, emission) = rule_basis(ctx, scene, solved, rad);
+        let threshold = ctx.reach_bound * emission;
         let reach = reach(ctx, scene, rad, decide.clone(), threshold);
         ReachRule {
             reach,
@@ -258,6 +254,44 @@ fn components(scene: &Scene, plan: &Plan, transport: &Transport, solved: &Solved
     Radiosity::new(&scene.patches, &all_b, &slopes, &edge_e)
 }
 
+/// The components that decide the reach, and the emission its bound is
+/// relative to: the bake's own channels and the brightest emission, or,
+/// with responses, the responses and their unit emission (then what is
+/// culled does not depend on emission).
+fn rule_basis(
+    ctx: &Ctx,
+    scene: &Scene,
+    solved: &Solved,
+    rad: &Radiosity,
+) -> (std::ops::Range<usize>, f64) {
+    let kk = rad.components;
+    if solved.responses.is_empty() {
+        (0..kk, brightest_emission(ctx, scene))
+    } else {
+        (solved.class_b.len()..kk, TRACED_EMISSION)
+    }
+}
+
+/// Per edge, its brightest radiosity over the components that decide the
+/// gather's reach, relative to the emission that reach is relative to: how
+/// far the edge's light reaches, by the gather's own rule, which the form
+/// factors' reach follows ([`super::factors::ReachPasses`]).
+pub fn relative_radiosity(
+    ctx: &Ctx,
+    scene: &Scene,
+    plan: &Plan,
+    transport: &Transport,
+    solved: &Solved,
+) -> Vec<f64> {
+    let rad = components(scene, plan, transport, solved);
+    let (decide, emission) = rule_basis(ctx, scene, solved, &rad);
+    let mut b = brightest(scene, &rad, decide);
+    for v in &mut b {
+        *v = if emission > 0.0 { *v / emission } else { 1.0 };
+    }
+    b
+}
+
 /// How far each edge's light reaches: where its brightest radiosity over
 /// the components `decide`, under the falloff, falls below `threshold`.
 fn reach(
@@ -267,9 +301,23 @@ fn reach(
     decide: std::ops::Range<usize>,
     threshold: f64,
 ) -> Reach {
+    let bmax = brightest(scene, rad, decide);
+    let lens: Vec<f64> = scene.geometry.edges.iter().map(|e| e.len()).collect();
+    Reach::new(
+        &lens,
+        &bmax,
+        ctx.falloff,
+        1.0 / std::f64::consts::TAU,
+        threshold,
+    )
+}
+
+/// Per edge, its brightest radiosity over the components `decide` (at a
+/// patch's brighter end).
+fn brightest(scene: &Scene, rad: &Radiosity, decide: std::ops::Range<usize>) -> Vec<f64> {
     let (edges, patches) = (&scene.geometry.edges, &scene.patches);
     let kk = rad.components;
-    let bmax: Vec<f64> = (0..edges.len())
+    (0..edges.len())
         .map(|ei| {
             let mut m: f64 = 0.0;
             for p in patches.of_edge(ei) {
@@ -282,15 +330,7 @@ fn reach(
             }
             m
         })
-        .collect();
-    let lens: Vec<f64> = edges.iter().map(|e| e.len()).collect();
-    Reach::new(
-        &lens,
-        &bmax,
-        ctx.falloff,
-        1.0 / std::f64::consts::TAU,
-        threshold,
-    )
+        .collect()
 }
 
 /// The floor pixels split into those in free regions that some lit edge

@@ -39,7 +39,7 @@ pub mod texels;
 use std::time::Instant;
 
 pub use directional::Directional;
-pub use factors::Transport;
+pub use factors::{ReachPasses, Transport};
 pub use light::Gathered;
 pub use lightmap::Lightmap;
 pub use memory::MemoryEstimate;
@@ -114,6 +114,11 @@ pub struct Settings {
     /// memory ([`MemoryEstimate`]) is above this many bytes. Default: no
     /// limit (the command line passes the memory the machine has free).
     pub max_memory: Option<u64>,
+    /// Run the form factors in [`ReachPasses`] when the memory estimate
+    /// counts at least this many entries at a unit of radiosity (and there
+    /// is falloff). Default [`ReachPasses::FROM_ENTRIES`]; 0 always, with
+    /// falloff; `u64::MAX` never.
+    pub reach_passes_from: u64,
     /// Also compute the first circular moments of every floor pixel's light
     /// ([`Directional`]), for normal-mapped sprites. The flatland kernel and
     /// the fast gather only. Default off; off costs nothing.
@@ -143,6 +148,7 @@ impl Settings {
             responses: false,
             exhaustive: false,
             max_memory: None,
+            reach_passes_from: ReachPasses::FROM_ENTRIES,
             directional: false,
             unit: 1,
             keep_form_factors: true,
@@ -393,22 +399,55 @@ pub fn bake_with_progress(
         });
     }
 
-    let mut transport = if plan.needs_form_factors() {
-        progress("form factors");
+    // Under falloff, the form factors' reach follows each edge's solved
+    // light, found in passes of form factors and solve (each with its own
+    // plan and log: the pass that stands keeps them).
+    let mut passes = plan
+        .needs_form_factors()
+        .then(|| ReachPasses::new(&ctx, &scene, memory.factor_entries))
+        .flatten();
+    let (mut transport, solved) = loop {
+        let (mut pass_plan, mut pass_log) = (plan.clone(), log.clone());
+        let transport = if pass_plan.needs_form_factors() {
+            progress("form factors");
+            let t = Instant::now();
+            let transport = factors::form_factors(
+                &ctx,
+                &scene,
+                &mut pass_plan,
+                &structures,
+                passes.as_ref(),
+                &mut pass_log,
+            );
+            timings.form_factors += t.elapsed().as_secs_f64();
+            transport
+        } else {
+            Transport::default()
+        };
+        progress("solve");
         let t = Instant::now();
-        let transport = factors::form_factors(&ctx, &scene, &mut plan, &structures, &mut log);
-        timed(&mut timings.form_factors, t);
-        transport
-    } else {
-        Transport::default()
+        let solved = radiosity::solve(&ctx, &scene, &pass_plan, &transport, &mut pass_log)?;
+        timings.solve += t.elapsed().as_secs_f64();
+        let again = passes.as_mut().is_some_and(|p| {
+            let need = light::relative_radiosity(&ctx, &scene, &pass_plan, &transport, &solved);
+            p.next(&ctx, &scene, &structures, &need)
+        });
+        if !again {
+            (plan, log) = (pass_plan, pass_log);
+            break (transport, solved);
+        }
     };
+    if let Some(p) = &passes {
+        log.skip(
+            "form-factor reach",
+            format!(
+                "each edge's form factors reach as far as its solved light calls for, found in {} passes of form factors and solve",
+                p.passes
+            ),
+        );
+    }
     // The gather builds its own (for pixel centres), after the solve.
     drop(structures);
-
-    progress("solve");
-    let t = Instant::now();
-    let solved = radiosity::solve(&ctx, &scene, &plan, &transport, &mut log)?;
-    timed(&mut timings.solve, t);
 
     let form_factor_entries = transport.entries();
     if !settings.keep_form_factors {
