@@ -418,8 +418,9 @@ impl<'g> Blocks<'g> {
 /// An edge is listed when its reach plus its length exceeds the radius (it
 /// may be wanted from a point and have a part farther than the radius).
 /// Listed edges are grouped by the [`FarWanted::GROUP`] square their
-/// middle lies in: a group is the box around its edges and the longest of
-/// their reaches, and its directions from a point cover theirs. Each group is listed under every
+/// middle lies in (or a square 2, 4 or 8 times as wide, where the lists
+/// would be too long): a group is the box around its edges and the longest
+/// of their reaches, and its directions from a point cover theirs. Each group is listed under every
 /// cell of [`FarWanted::CELL`] blocks that has points within its reach.
 pub struct FarWanted {
     radius: f64,
@@ -452,20 +453,38 @@ impl FarWanted {
 
     /// For the squared reaches `reach2` of `g`'s edges (negative: no
     /// light); `None` when the lists would hold more entries than
-    /// [`FarWanted::MOST`] per cell on average: most points would walk
-    /// everywhere anyway.
+    /// [`FarWanted::MOST`] per cell on average even with the coarsest
+    /// groups: most points would walk everywhere anyway.
     pub fn new(g: &Geometry, reach2: &[f64]) -> Option<FarWanted> {
         let cell = (Blocks::SIZE * Self::CELL * g.unit.max(1) as i32) as f64;
-        let block = Self::GROUP * g.unit.max(1) as f64;
-        let radius = cell;
         let nx = (g.width as f64 / cell).ceil().max(1.0) as usize;
         let ny = (g.height as f64 / cell).ceil().max(1.0) as usize;
-        // The groups, by the block of their edges' middles.
+        // Squares of GROUP px, or coarser where their lists would be too
+        // long (many edges reaching far: coarser boxes, fewer of them).
+        (0..4).find_map(|k| {
+            let side = Self::GROUP * (1 << k) as f64 * g.unit.max(1) as f64;
+            let groups = Self::groups(g, reach2, cell, side);
+            let (start, list) = Self::lists(&groups, cell, nx, ny)?;
+            Some(FarWanted {
+                radius: cell,
+                cell,
+                nx,
+                ny,
+                groups,
+                start,
+                list,
+            })
+        })
+    }
+
+    /// The listed edges of `g` (reach plus length past `radius`) grouped
+    /// by the `side` px square their middle lies in.
+    fn groups(g: &Geometry, reach2: &[f64], radius: f64, side: f64) -> Vec<Group> {
         let (bx, by) = (
-            (g.width as f64 / block).ceil().max(1.0) as usize,
-            (g.height as f64 / block).ceil().max(1.0) as usize,
+            (g.width as f64 / side).ceil().max(1.0) as usize,
+            (g.height as f64 / side).ceil().max(1.0) as usize,
         );
-        let mut of_block: Vec<u32> = vec![u32::MAX; bx * by];
+        let mut of_square: Vec<u32> = vec![u32::MAX; bx * by];
         let mut groups: Vec<Group> = Vec::new();
         for (e, &r2) in g.edges.iter().zip(reach2) {
             if r2 < 0.0 || r2.sqrt() + e.len() <= radius {
@@ -473,17 +492,17 @@ impl FarWanted {
             }
             let (x0, x1) = (e.a[0].min(e.b[0]) as f64, e.a[0].max(e.b[0]) as f64);
             let (y0, y1) = (e.a[1].min(e.b[1]) as f64, e.a[1].max(e.b[1]) as f64);
-            let c = |v: f64, n: usize| ((v / block).floor().max(0.0) as usize).min(n - 1);
+            let c = |v: f64, n: usize| ((v / side).floor().max(0.0) as usize).min(n - 1);
             let b = c(0.5 * (y0 + y1), by) * bx + c(0.5 * (x0 + x1), bx);
             let reach = r2.sqrt() + 1.0;
-            if of_block[b] == u32::MAX {
-                of_block[b] = groups.len() as u32;
+            if of_square[b] == u32::MAX {
+                of_square[b] = groups.len() as u32;
                 groups.push(Group {
                     bbox: [x0, y0, x1, y1],
                     reach,
                 });
             } else {
-                let gr = &mut groups[of_block[b] as usize];
+                let gr = &mut groups[of_square[b] as usize];
                 gr.bbox = [
                     gr.bbox[0].min(x0),
                     gr.bbox[1].min(y0),
@@ -493,7 +512,13 @@ impl FarWanted {
                 gr.reach = gr.reach.max(reach);
             }
         }
-        drop(of_block);
+        groups
+    }
+
+    /// Per cell of `cell` px (`nx` by `ny`), the groups whose reach has
+    /// points in it (CSR starts and list); `None` when the lists would
+    /// hold more than [`FarWanted::MOST`] entries per cell on average.
+    fn lists(groups: &[Group], cell: f64, nx: usize, ny: usize) -> Option<(Vec<u32>, Vec<u32>)> {
         // The cells whose points a group may reach.
         let cells = |gr: &Group| {
             let c = |v: f64, n: usize| ((v / cell).floor().max(0.0) as usize).min(n - 1);
@@ -503,7 +528,7 @@ impl FarWanted {
         };
         let mut start = vec![0u32; nx * ny + 1];
         let (mut entries, budget) = (0usize, Self::MOST * nx * ny);
-        for gr in &groups {
+        for gr in groups {
             let (xs, ys) = cells(gr);
             entries += xs.clone().count() * ys.clone().count();
             if entries > budget {
@@ -530,15 +555,7 @@ impl FarWanted {
                 }
             }
         }
-        Some(FarWanted {
-            radius,
-            cell,
-            nx,
-            ny,
-            groups,
-            start,
-            list,
-        })
+        Some((start, list))
     }
 
     /// The groups listed under the cell of `p`.
