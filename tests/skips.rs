@@ -442,6 +442,15 @@ fn form_factor_reach_follows_the_solved_light() {
         passes.report.skipped
     );
     assert!(!skipped(&whole, "form-factor reach"));
+    assert!(
+        passes
+            .report
+            .skipped
+            .iter()
+            .any(|s| s.effect == "form-factor reach" && s.reason.contains("calls for")),
+        "the passes did not fall back to a unit of radiosity: {:?}",
+        passes.report.skipped
+    );
     let (few, all) = (
         passes.report.counts.form_factor_entries,
         whole.report.counts.form_factor_entries,

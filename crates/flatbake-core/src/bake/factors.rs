@@ -239,6 +239,12 @@ impl ReachPasses {
         })
     }
 
+    /// Whether the current pass reaches as far as a unit of radiosity (the
+    /// passes fell back to it).
+    pub fn at_unit_radiosity(&self) -> bool {
+        self.unit
+    }
+
     /// Quadrature points per patch for the current pass.
     fn quad(&self, ctx: &Ctx) -> usize {
         if self.relative.is_empty() && !self.unit {

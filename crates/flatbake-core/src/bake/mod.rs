@@ -440,10 +440,17 @@ pub fn bake_with_progress(
     if let Some(p) = &passes {
         log.skip(
             "form-factor reach",
-            format!(
-                "each edge's form factors reach as far as its solved light calls for, found in {} passes of form factors and solve",
-                p.passes
-            ),
+            if p.at_unit_radiosity() {
+                format!(
+                    "an estimate of each edge's light found that following it would save little: the form factors reach as far as a unit of radiosity ({} passes of form factors and solve)",
+                    p.passes
+                )
+            } else {
+                format!(
+                    "each edge's form factors reach as far as its solved light calls for, found in {} passes of form factors and solve",
+                    p.passes
+                )
+            },
         );
     }
     // The gather builds its own (for pixel centres), after the solve.
