@@ -166,15 +166,24 @@ pub fn unit_reach(ctx: &Ctx, geometry: &Geometry) -> Reach {
 pub struct ReachPasses {
     /// The current pass's reach.
     reach: Reach,
-    /// The radiosity the current pass's reach is for (relative; empty for
-    /// the estimate).
-    relative: Vec<f64>,
+    /// What the current pass is.
+    stage: Stage,
     /// Passes run, the current one included.
     pub passes: usize,
-    /// The current pass reaches as far as a unit of radiosity.
-    unit: bool,
     /// The memory estimate's entries at a unit of radiosity.
     unit_entries: u64,
+    /// The edges' lengths, for their reaches.
+    lens: Vec<f64>,
+}
+
+/// What a pass of [`ReachPasses`] is.
+enum Stage {
+    /// The estimate.
+    Estimate,
+    /// A pass whose reach is for this radiosity per edge (relative).
+    Following(Vec<f64>),
+    /// A pass at a unit of radiosity, which stands.
+    Unit,
 }
 
 impl ReachPasses {
@@ -232,25 +241,24 @@ impl ReachPasses {
         reach.max = reach.radius.iter().copied().fold(0.0, f64::max);
         Some(ReachPasses {
             reach,
-            relative: Vec::new(),
+            stage: Stage::Estimate,
             passes: 1,
-            unit: false,
             unit_entries,
+            lens: geometry.edges.iter().map(|e| e.len()).collect(),
         })
     }
 
     /// Whether the current pass reaches as far as a unit of radiosity (the
     /// passes fell back to it).
     pub fn at_unit_radiosity(&self) -> bool {
-        self.unit
+        matches!(self.stage, Stage::Unit)
     }
 
     /// Quadrature points per patch for the current pass.
     fn quad(&self, ctx: &Ctx) -> usize {
-        if self.relative.is_empty() && !self.unit {
-            1
-        } else {
-            ctx.settings.knobs.quad
+        match self.stage {
+            Stage::Estimate => 1,
+            _ => ctx.settings.knobs.quad,
         }
     }
 
@@ -265,58 +273,62 @@ impl ReachPasses {
         structures: &Structures,
         need: &[f64],
     ) -> bool {
-        if self.unit {
-            return false;
-        }
-        let lens: Vec<f64> = scene.geometry.edges.iter().map(|e| e.len()).collect();
-        let reach_for = |b: &[f64]| Reach::new(&lens, b, ctx.falloff, 0.5, ctx.reach_bound);
+        let reach_for = |b: &[f64]| Reach::new(&self.lens, b, ctx.falloff, 0.5, ctx.reach_bound);
         let capped = |b: f64| b.min(1.0);
-        if self.relative.is_empty() {
-            // After the estimate: the reach its radiosity calls for, worth
-            // a pass only where a sample of patches has far fewer factors
-            // with it than at a unit of radiosity (the memory estimate's
-            // count, sampled the same way).
-            let floor = Self::FLOOR * ctx.reach_bound;
-            self.relative = need
-                .iter()
-                .map(|&b| capped(Self::MARGIN * b).max(floor))
-                .collect();
-            let ours = transport::estimate_entries(
-                structures,
-                &scene.patches,
-                ctx.settings.knobs.quad,
-                ctx.falloff,
-                &reach_for(&self.relative),
-                ctx.reach_bound,
-                SAMPLED_PATCHES,
-            );
-            if ours as f64 > Self::WORTH * self.unit_entries as f64 {
-                return self.at_unit(ctx, scene);
+        let relative = match &mut self.stage {
+            Stage::Unit => return false,
+            Stage::Estimate => {
+                // The reach the estimate's radiosity calls for, worth a
+                // pass only where a sample of patches has far fewer factors
+                // with it than at a unit of radiosity (the memory
+                // estimate's count, sampled the same way).
+                let floor = Self::FLOOR * ctx.reach_bound;
+                let relative: Vec<f64> = need
+                    .iter()
+                    .map(|&b| capped(Self::MARGIN * b).max(floor))
+                    .collect();
+                let ours = transport::estimate_entries(
+                    structures,
+                    &scene.patches,
+                    ctx.settings.knobs.quad,
+                    ctx.falloff,
+                    &reach_for(&relative),
+                    ctx.reach_bound,
+                    SAMPLED_PATCHES,
+                );
+                if ours as f64 > Self::WORTH * self.unit_entries as f64 {
+                    return self.at_unit(ctx, scene);
+                }
+                relative
             }
-        } else {
-            // Edges whose light reaches farther than the pass gave them.
-            // (Only where the radiosity is above what the reach was for can
-            // it call for more: the others are left at 0.)
-            let above: Vec<f64> = need
-                .iter()
-                .zip(&self.relative)
-                .map(|(&b, &r)| if capped(b) > r { capped(b) } else { 0.0 })
-                .collect();
-            let wanted = reach_for(&above);
-            let short: Vec<usize> = (0..need.len())
-                .filter(|&e| wanted.radius[e] > self.reach.radius[e] + 1e-9)
-                .collect();
-            if short.is_empty() {
-                return false;
+            Stage::Following(relative) => {
+                // Edges whose light reaches farther than the pass gave
+                // them. (Only where the radiosity is above what the reach
+                // was for can it call for more: the others are left at 0.)
+                let above: Vec<f64> = need
+                    .iter()
+                    .zip(relative.iter())
+                    .map(|(&b, &r)| if capped(b) > r { capped(b) } else { 0.0 })
+                    .collect();
+                let wanted = reach_for(&above);
+                let short: Vec<usize> = (0..need.len())
+                    .filter(|&e| wanted.radius[e] > self.reach.radius[e] + 1e-9)
+                    .collect();
+                if short.is_empty() {
+                    return false;
+                }
+                if self.passes > Self::MOST {
+                    return self.at_unit(ctx, scene);
+                }
+                let mut relative = std::mem::take(relative);
+                for e in short {
+                    relative[e] = relative[e].max(capped(Self::MARGIN * need[e]));
+                }
+                relative
             }
-            if self.passes > Self::MOST {
-                return self.at_unit(ctx, scene);
-            }
-            for e in short {
-                self.relative[e] = self.relative[e].max(capped(Self::MARGIN * need[e]));
-            }
-        }
-        self.reach = reach_for(&self.relative);
+        };
+        self.reach = reach_for(&relative);
+        self.stage = Stage::Following(relative);
         self.passes += 1;
         true
     }
@@ -324,7 +336,7 @@ impl ReachPasses {
     /// Sets up the next pass at a unit of radiosity, which stands.
     fn at_unit(&mut self, ctx: &Ctx, scene: &Scene) -> bool {
         self.reach = unit_reach(ctx, &scene.geometry);
-        self.unit = true;
+        self.stage = Stage::Unit;
         self.passes += 1;
         true
     }

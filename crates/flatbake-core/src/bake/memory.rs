@@ -38,7 +38,7 @@
 //!   bytes per gathered component (two f64 moments, and draft's copy) and
 //!   24 for the moments kept, and 8 more per response.
 
-use super::{Ctx, Plan, Scene};
+use super::{Ctx, Plan, Scene, factors};
 use crate::gather::Kernel;
 use crate::transport::kernel::Reach;
 use crate::transport::{self, solve::SolveSettings};
@@ -80,13 +80,14 @@ impl MemoryEstimate {
         let factor_entries = if plan.needs_form_factors() {
             // The paper kernel stores one entry per visible patch pair, with
             // no reach bound: the same count at one point per patch.
-            let (quad, bound) = match ctx.settings.kernel {
-                Kernel::Flatland => (ctx.settings.knobs.quad, ctx.reach_bound),
-                Kernel::Paper => (1, 0.0),
+            let (quad, bound, reach) = match ctx.settings.kernel {
+                Kernel::Flatland => (
+                    ctx.settings.knobs.quad,
+                    ctx.reach_bound,
+                    factors::unit_reach(ctx, &scene.geometry),
+                ),
+                Kernel::Paper => (1, 0.0, Reach::unlimited(scene.geometry.edges.len())),
             };
-            let edges = &scene.geometry.edges;
-            let lens: Vec<f64> = edges.iter().map(|e| e.len()).collect();
-            let reach = Reach::new(&lens, &vec![1.0; edges.len()], ctx.falloff, 0.5, bound);
             transport::estimate_entries(
                 structures,
                 &scene.patches,
