@@ -235,10 +235,14 @@ impl Coverage {
                 p.distance_at(k0).max(p.distance_at(k1))
             }
         };
-        // Rebuild the overlapped range (and merge with equal neighbours).
-        let mut a = first;
-        let mut i = first;
+        // Rebuild the overlapped range from the first interval the piece
+        // wins to the last (and merge with equal neighbours): the others
+        // stay as they are. A far piece seen through a few gaps overlaps
+        // many intervals and wins one or two.
+        let mut a = i;
         self.scratch.clear();
+        // Scratch length and next interval after the last one it wins.
+        let mut kept = (0, i);
         while i < n && self.start(i) < pc.kb {
             let (s, v) = (self.start(i), self.iv[i]);
             let (lo, hi) = (s.max(pc.ka), v.end.min(pc.kb));
@@ -273,8 +277,13 @@ impl Coverage {
                 });
             }
             i += 1;
+            if wins {
+                kept = (self.scratch.len(), i);
+            }
         }
-        let mut b = i;
+        // Past the last interval the piece wins, nothing changes.
+        self.scratch.truncate(kept.0);
+        let mut b = kept.1;
         // The first run also takes in the interval before (not in `scratch`).
         let mut first_run = 1;
         if a > 0 && self.iv[a - 1].owner == self.scratch[0].owner {
