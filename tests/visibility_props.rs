@@ -540,6 +540,58 @@ fn dot_field(side: usize, sparse: u64, seed: u64) -> Level {
     })
 }
 
+/// On a level dense enough for small blocks (a field of one-pixel dots,
+/// where far dots are seen through narrow gaps), the walk gives the
+/// sweep's spans, from every free pixel centre and from a point on every
+/// edge.
+#[test]
+fn walk_over_small_blocks_agrees_with_the_sweep() {
+    let g = trace(&dot_field(48, 1, 7));
+    let blocks = Blocks::new(&g);
+    assert_eq!(blocks.side(), Blocks::DENSE_SIZE, "{} edges", g.edges.len());
+    let all: Vec<u32> = (0..g.edges.len() as u32).collect();
+    let mut points: Vec<Viewpoint> = Vec::new();
+    for y in 0..48 {
+        for x in 0..48 {
+            if let Some(comp) = g.component_at(x, y) {
+                let p = [x as f64 + 0.5, y as f64 + 0.5];
+                points.push(Viewpoint::new(p, View::Full, comp));
+            }
+        }
+    }
+    for e in &g.edges {
+        let (lo, hi) = e.extent();
+        let p = e.point_at(lo + 0.3 * (hi - lo));
+        points.push(Viewpoint::new(p, View::Half(e.normal), e.component));
+    }
+    let mut sw = Sweeper::new();
+    let mut far_seen = 0;
+    for at in points {
+        let (mut a, mut b): (Vec<Span>, Vec<Span>) = (vec![], vec![]);
+        sw.sweep(&g.edges, &all, at, &mut a);
+        sw.walk(&blocks, at, f64::INFINITY, &[], &mut b);
+        let (a, b) = (wide(&a), wide(&b));
+        assert_eq!(a.len(), b.len(), "point {:?}", at.p);
+        for (s, t) in a.iter().zip(&b) {
+            assert_eq!(s.edge, t.edge, "point {:?}", at.p);
+            assert!(
+                (s.s0 - t.s0).abs() < 1e-9 && (s.s1 - t.s1).abs() < 1e-9,
+                "point {:?}: {s:?} vs {t:?}",
+                at.p
+            );
+        }
+        far_seen += a
+            .iter()
+            .filter(|s| {
+                let e = &g.edges[s.edge as usize];
+                e.distance_sq(at.p) > 16.0 * 16.0
+            })
+            .count();
+    }
+    // Far dots are seen through the gaps (else the test walks nothing far).
+    assert!(far_seen > 1000, "{far_seen} spans of dots past 16 px");
+}
+
 /// With [`FarWanted`], a walk leaves the blocks past its radius unwalked
 /// except in the directions of the edges wanted there, and no wanted span
 /// changes: on fields of dots whose reaches are mostly short, with a few

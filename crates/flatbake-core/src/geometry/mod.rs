@@ -226,8 +226,9 @@ pub struct Geometry {
     /// Number of free-space components.
     pub component_count: u32,
     /// Pixels per painted pixel: 1, or the upscale factor of a texel bake.
-    /// Visibility's blocks are [`crate::visibility::Blocks::SIZE`] painted
-    /// pixels, so a finer bake does not walk more of them per point.
+    /// Visibility's blocks are [`crate::visibility::Blocks::SIZE`] (or
+    /// [`crate::visibility::Blocks::DENSE_SIZE`]) painted pixels, so a
+    /// finer bake does not walk more of them per point.
     pub unit: usize,
 }
 

@@ -341,10 +341,26 @@ pub struct Blocks<'g> {
 impl<'g> Blocks<'g> {
     /// Side of a block in painted pixels (times [`Geometry::unit`] in pixels).
     pub const SIZE: i32 = 8;
+    /// Side of a block on dense levels, in painted pixels: there a walk
+    /// inserts fewer edges per block it cannot skip.
+    pub const DENSE_SIZE: i32 = 4;
+    /// Edges per [`Blocks::SIZE`] block, on average over the level, from
+    /// which its blocks are [`Blocks::DENSE_SIZE`] (a field of one-pixel
+    /// dots has 64; wall noise at 10 % has 21, the pillar field 5).
+    pub const DENSE: usize = 32;
 
-    /// Bins the edges of `g`.
+    /// Side of the blocks, in pixels.
+    pub fn side(&self) -> i32 {
+        self.size
+    }
+
+    /// Bins the edges of `g`, in blocks of [`Blocks::SIZE`] painted pixels,
+    /// or of [`Blocks::DENSE_SIZE`] on a dense level.
     pub fn new(g: &'g Geometry) -> Blocks<'g> {
-        let size = Self::SIZE * g.unit.max(1) as i32;
+        let unit = g.unit.max(1);
+        let area = (g.width * g.height) as f64 / (Self::SIZE as usize * unit).pow(2) as f64;
+        let dense = g.edges.len() as f64 >= Self::DENSE as f64 * area.max(1.0);
+        let size = if dense { Self::DENSE_SIZE } else { Self::SIZE } * unit as i32;
         let nx = g.width.div_ceil(size as usize).max(1);
         let ny = g.height.div_ceil(size as usize).max(1);
         let blocks_of = |e: &Edge| {
@@ -430,7 +446,7 @@ impl<'g> Blocks<'g> {
 /// middle lies in (or a square 2, 4 or 8 times as wide, where the lists
 /// would be too long): a group is the box around its edges and the longest
 /// of their reaches, and its directions from a point cover theirs. Each group is listed under every
-/// cell of [`FarWanted::CELL`] blocks that has points within its reach.
+/// cell of [`FarWanted::CELL`] pixels that has points within its reach.
 pub struct FarWanted {
     radius: f64,
     cell: f64,
@@ -450,8 +466,8 @@ struct Group {
 }
 
 impl FarWanted {
-    /// Side of a cell, in blocks; the radius is one cell.
-    pub const CELL: i32 = 4;
+    /// Side of a cell, in painted pixels; the radius is one cell.
+    pub const CELL: i32 = 32;
     /// Side of the squares whose edges are grouped, in pixels: the box of
     /// a group covers little more than its edges (one one-pixel dot), and
     /// the lists are several times shorter than lists of edges.
@@ -465,7 +481,7 @@ impl FarWanted {
     /// [`FarWanted::MOST`] per cell on average even with the coarsest
     /// groups: most points would walk everywhere anyway.
     pub fn new(g: &Geometry, reach2: &[f64]) -> Option<FarWanted> {
-        let cell = (Blocks::SIZE * Self::CELL * g.unit.max(1) as i32) as f64;
+        let cell = (Self::CELL * g.unit.max(1) as i32) as f64;
         let nx = (g.width as f64 / cell).ceil().max(1.0) as usize;
         let ny = (g.height as f64 / cell).ceil().max(1.0) as usize;
         // Squares of GROUP px, or coarser where their lists would be too
