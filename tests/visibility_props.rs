@@ -4,7 +4,7 @@
 mod common;
 use common::*;
 
-use flatbake_core::geometry::{Edge, trace};
+use flatbake_core::geometry::{Edge, Geometry, trace};
 use flatbake_core::level::Level;
 use flatbake_core::visibility::{
     Blocks, FarWanted, Rect, Span, Structures, Sweeper, View, Viewpoint, Wanted, diamond,
@@ -540,20 +540,13 @@ fn dot_field(side: usize, sparse: u64, seed: u64) -> Level {
     })
 }
 
-/// On a level dense enough for small blocks (a field of one-pixel dots,
-/// where far dots are seen through narrow gaps), the walk gives the
-/// sweep's spans, from every free pixel centre and from a point on every
-/// edge.
-#[test]
-fn walk_over_small_blocks_agrees_with_the_sweep() {
-    let g = trace(&dot_field(48, 1, 7));
-    let blocks = Blocks::new(&g);
-    assert_eq!(blocks.side(), Blocks::DENSE_SIZE, "{} edges", g.edges.len());
-    let all: Vec<u32> = (0..g.edges.len() as u32).collect();
+/// Every free pixel centre of a `side` x `side` level (full view) and a
+/// point on every edge (half view).
+fn free_centres_and_edge_points(g: &Geometry, side: usize) -> Vec<Viewpoint> {
     let mut points: Vec<Viewpoint> = Vec::new();
-    for y in 0..48 {
-        for x in 0..48 {
-            if let Some(comp) = g.component_at(x, y) {
+    for y in 0..side {
+        for x in 0..side {
+            if let Some(comp) = g.component_at(x as i64, y as i64) {
                 let p = [x as f64 + 0.5, y as f64 + 0.5];
                 points.push(Viewpoint::new(p, View::Full, comp));
             }
@@ -564,9 +557,22 @@ fn walk_over_small_blocks_agrees_with_the_sweep() {
         let p = e.point_at(lo + 0.3 * (hi - lo));
         points.push(Viewpoint::new(p, View::Half(e.normal), e.component));
     }
+    points
+}
+
+/// On a level dense enough for small blocks (a field of one-pixel dots,
+/// where far dots are seen through narrow gaps), the walk gives the
+/// sweep's spans, from every free pixel centre and from a point on every
+/// edge.
+#[test]
+fn walk_over_small_blocks_agrees_with_the_sweep() {
+    let g = trace(&dot_field(48, 1, 7));
+    let blocks = Blocks::new(&g);
+    assert_eq!(blocks.side(), Blocks::DENSE_SIZE, "{} edges", g.edges.len());
+    let all: Vec<u32> = (0..g.edges.len() as u32).collect();
     let mut sw = Sweeper::new();
     let mut far_seen = 0;
-    for at in points {
+    for at in free_centres_and_edge_points(&g, 48) {
         let (mut a, mut b): (Vec<Span>, Vec<Span>) = (vec![], vec![]);
         sw.sweep(&g.edges, &all, at, &mut a);
         sw.walk(&blocks, at, f64::INFINITY, &[], &mut b);
@@ -621,22 +627,8 @@ fn far_wanted_changes_no_wanted_span() {
             class: None,
         });
         let mut sw = Sweeper::new();
-        let mut points: Vec<Viewpoint> = Vec::new();
-        for y in 0..side {
-            for x in 0..side {
-                if let Some(comp) = g.component_at(x as i64, y as i64) {
-                    let p = [x as f64 + 0.5, y as f64 + 0.5];
-                    points.push(Viewpoint::new(p, View::Full, comp));
-                }
-            }
-        }
-        for e in &g.edges {
-            let (lo, hi) = e.extent();
-            let p = e.point_at(lo + 0.3 * (hi - lo));
-            points.push(Viewpoint::new(p, View::Half(e.normal), e.component));
-        }
         let (mut dim_all, mut dim_far) = (0, 0);
-        for at in points {
+        for at in free_centres_and_edge_points(&g, side) {
             let (mut a, mut b): (Vec<Span>, Vec<Span>) = (vec![], vec![]);
             dim_all += sw.walk_wanted(&blocks, at, f64::INFINITY, &[], wanted, None, &mut a);
             dim_far += sw.walk_wanted(&blocks, at, f64::INFINITY, &[], wanted, Some(&far), &mut b);
