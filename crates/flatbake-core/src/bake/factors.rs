@@ -133,13 +133,14 @@ fn sees_light(
 /// is left out where its factor is below the preset's bound.
 pub fn unit_reach(ctx: &Ctx, geometry: &Geometry) -> Reach {
     let lens: Vec<f64> = geometry.edges.iter().map(|e| e.len()).collect();
-    Reach::new(
-        &lens,
-        &vec![1.0; lens.len()],
-        ctx.falloff,
-        0.5,
-        ctx.reach_bound,
-    )
+    reach_for(ctx, &lens, &vec![1.0; lens.len()])
+}
+
+/// The form factors' reach for edges of lengths `lens` whose radiosity is
+/// `b` (relative): a pair is left out where its factor times `b` is below
+/// the preset's bound.
+fn reach_for(ctx: &Ctx, lens: &[f64], b: &[f64]) -> Reach {
+    Reach::new(lens, b, ctx.falloff, 0.5, ctx.reach_bound)
 }
 
 /// The form factors' reach under falloff, made to follow each edge's own
@@ -227,7 +228,8 @@ impl ReachPasses {
             return None;
         }
         let geometry = &scene.geometry;
-        let mut reach = unit_reach(ctx, geometry);
+        let lens: Vec<f64> = geometry.edges.iter().map(|e| e.len()).collect();
+        let mut reach = reach_for(ctx, &lens, &vec![1.0; lens.len()]);
         let most = Self::ESTIMATE_REACH * geometry.unit.max(1) as f64;
         for (e, r) in reach.radius.iter_mut().enumerate() {
             let emits = scene
@@ -244,7 +246,7 @@ impl ReachPasses {
             stage: Stage::Estimate,
             passes: 1,
             unit_entries,
-            lens: geometry.edges.iter().map(|e| e.len()).collect(),
+            lens,
         })
     }
 
@@ -273,7 +275,7 @@ impl ReachPasses {
         structures: &Structures,
         need: &[f64],
     ) -> bool {
-        let reach_for = |b: &[f64]| Reach::new(&self.lens, b, ctx.falloff, 0.5, ctx.reach_bound);
+        let reach_for = |b: &[f64]| reach_for(ctx, &self.lens, b);
         let capped = |b: f64| b.min(1.0);
         let relative = match &mut self.stage {
             Stage::Unit => return false,
@@ -297,7 +299,7 @@ impl ReachPasses {
                     SAMPLED_PATCHES,
                 );
                 if ours as f64 > Self::WORTH * self.unit_entries as f64 {
-                    return self.at_unit(ctx, scene);
+                    return self.at_unit(ctx);
                 }
                 relative
             }
@@ -318,7 +320,7 @@ impl ReachPasses {
                     return false;
                 }
                 if self.passes > Self::MOST {
-                    return self.at_unit(ctx, scene);
+                    return self.at_unit(ctx);
                 }
                 let mut relative = std::mem::take(relative);
                 for e in short {
@@ -334,8 +336,8 @@ impl ReachPasses {
     }
 
     /// Sets up the next pass at a unit of radiosity, which stands.
-    fn at_unit(&mut self, ctx: &Ctx, scene: &Scene) -> bool {
-        self.reach = unit_reach(ctx, &scene.geometry);
+    fn at_unit(&mut self, ctx: &Ctx) -> bool {
+        self.reach = reach_for(ctx, &self.lens, &vec![1.0; self.lens.len()]);
         self.stage = Stage::Unit;
         self.passes += 1;
         true

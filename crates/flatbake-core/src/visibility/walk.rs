@@ -323,6 +323,21 @@ impl Coverage {
     }
 }
 
+/// The squared least distance from `p` to the box `[x0, x1] x [y0, y1]`.
+#[inline]
+fn box_distance_sq(p: [f64; 2], x0: f64, y0: f64, x1: f64, y1: f64) -> f64 {
+    let dx = (x0 - p[0]).max(p[0] - x1).max(0.0);
+    let dy = (y0 - p[1]).max(p[1] - y1).max(0.0);
+    dx * dx + dy * dy
+}
+
+/// The cell of side `size` that coordinate `v` lies in, clamped to the
+/// `n` cells of the grid.
+#[inline]
+fn cell_of(v: f64, size: f64, n: usize) -> usize {
+    ((v / size).floor().max(0.0) as usize).min(n - 1)
+}
+
 /// Edges binned into square blocks, with a pyramid of counts above them,
 /// for [`Sweeper::walk`].
 pub struct Blocks<'g> {
@@ -517,8 +532,7 @@ impl FarWanted {
             }
             let (x0, x1) = (e.a[0].min(e.b[0]) as f64, e.a[0].max(e.b[0]) as f64);
             let (y0, y1) = (e.a[1].min(e.b[1]) as f64, e.a[1].max(e.b[1]) as f64);
-            let c = |v: f64, n: usize| ((v / side).floor().max(0.0) as usize).min(n - 1);
-            let b = c(0.5 * (y0 + y1), by) * bx + c(0.5 * (x0 + x1), bx);
+            let b = cell_of(0.5 * (y0 + y1), side, by) * bx + cell_of(0.5 * (x0 + x1), side, bx);
             let reach = r2.sqrt() + 1.0;
             if of_square[b] == u32::MAX {
                 of_square[b] = groups.len() as u32;
@@ -546,7 +560,7 @@ impl FarWanted {
     fn lists(groups: &[Group], cell: f64, nx: usize, ny: usize) -> Option<(Vec<u32>, Vec<u32>)> {
         // The cells whose points a group may reach.
         let cells = |gr: &Group| {
-            let c = |v: f64, n: usize| ((v / cell).floor().max(0.0) as usize).min(n - 1);
+            let c = |v: f64, n: usize| cell_of(v, cell, n);
             let [x0, y0, x1, y1] = gr.bbox;
             let r = gr.reach;
             (c(x0 - r, nx)..=c(x1 + r, nx), c(y0 - r, ny)..=c(y1 + r, ny))
@@ -585,8 +599,7 @@ impl FarWanted {
 
     /// The groups listed under the cell of `p`.
     fn at(&self, p: [f64; 2]) -> &[u32] {
-        let c = |v: f64, n: usize| ((v / self.cell).floor().max(0.0) as usize).min(n - 1);
-        let i = c(p[1], self.ny) * self.nx + c(p[0], self.nx);
+        let i = cell_of(p[1], self.cell, self.ny) * self.nx + cell_of(p[0], self.cell, self.nx);
         &self.list[self.start[i] as usize..self.start[i + 1] as usize]
     }
 }
@@ -635,9 +648,7 @@ impl Sweeper {
         for &gi in list {
             let gr = &far.groups[gi as usize];
             let [x0, y0, x1, y1] = gr.bbox;
-            let dx = (x0 - p[0]).max(p[0] - x1).max(0.0);
-            let dy = (y0 - p[1]).max(p[1] - y1).max(0.0);
-            if dx * dx + dy * dy > gr.reach * gr.reach {
+            if box_distance_sq(p, x0, y0, x1, y1) > gr.reach * gr.reach {
                 continue;
             }
             // Its farthest point is a corner.
@@ -753,9 +764,7 @@ impl Sweeper {
             let side = (blocks.size << level) as f64;
             let (x0, y0) = (x as f64 * side, y as f64 * side);
             let (x1, y1) = (x0 + side, y0 + side);
-            let dx = (x0 - p[0]).max(p[0] - x1).max(0.0);
-            let dy = (y0 - p[1]).max(p[1] - y1).max(0.0);
-            let dmin = (dx * dx + dy * dy).sqrt();
+            let dmin = box_distance_sq(p, x0, y0, x1, y1).sqrt();
             if dmin > reach_max {
                 continue;
             }
