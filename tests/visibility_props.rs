@@ -599,15 +599,20 @@ fn walk_over_small_blocks_agrees_with_the_sweep() {
 }
 
 /// With [`FarWanted`], a walk leaves the blocks past its radius unwalked
-/// except in the directions of the edges wanted there, and no wanted span
-/// changes: on fields of dots whose reaches are mostly short, with a few
-/// edges of long reach and some with no light, every free pixel centre
-/// (full view) and a point on every edge (half view) gets the spans of the
-/// walk that goes everywhere. Fewer dim spans are counted with it: blocks
-/// were left unwalked.
+/// except in the directions of the edges wanted there (and tests the
+/// blocks there only in those directions), and no wanted span changes: on
+/// fields of dots whose reaches are mostly short, with a few edges of long
+/// reach and some with no light, every free pixel centre (full view) and a
+/// point on every edge (half view) gets the spans of the walk that goes
+/// everywhere, at each radius `FarWanted::new` may choose. Fewer dim spans
+/// are counted with it: blocks were left unwalked.
 #[test]
 fn far_wanted_changes_no_wanted_span() {
-    for (side, sparse, seed) in [(150, 3, 1u64), (130, 6, 2)] {
+    let cells = FarWanted::NARROW.into_iter().chain([FarWanted::CELL]);
+    for ((side, sparse, seed), cell) in [(150, 3, 1u64), (130, 6, 2)]
+        .into_iter()
+        .flat_map(|level| cells.clone().map(move |c| (level, c)))
+    {
         let level = dot_field(side, sparse, seed);
         let g = trace(&level);
         let reach2: Vec<f64> = (0..g.edges.len() as u64)
@@ -620,7 +625,9 @@ fn far_wanted_changes_no_wanted_span() {
                 }
             })
             .collect();
-        let far = FarWanted::new(&g, &reach2).expect("short reaches: the lists are kept");
+        let far =
+            FarWanted::with_cell(&g, &reach2, cell).expect("short reaches: the lists are kept");
+        assert_eq!(far.radius(), cell as f64);
         let blocks = Blocks::new(&g);
         let wanted = Some(Wanted {
             reach2: &reach2,
@@ -632,11 +639,31 @@ fn far_wanted_changes_no_wanted_span() {
             let (mut a, mut b): (Vec<Span>, Vec<Span>) = (vec![], vec![]);
             dim_all += sw.walk_wanted(&blocks, at, f64::INFINITY, &[], wanted, None, &mut a);
             dim_far += sw.walk_wanted(&blocks, at, f64::INFINITY, &[], wanted, Some(&far), &mut b);
-            assert_eq!(a, b, "dots {side} px, one in {sparse}: point {:?}", at.p);
+            assert_eq!(
+                a, b,
+                "dots {side} px, one in {sparse}, radius {cell}: point {:?}",
+                at.p
+            );
         }
         assert!(
             dim_far < dim_all,
-            "dots {side} px: no block left unwalked ({dim_far} dim spans, {dim_all} without)"
+            "dots {side} px, radius {cell}: no block left unwalked ({dim_far} dim spans, {dim_all} without)"
         );
+    }
+}
+
+/// `FarWanted::new` takes the narrowest radius for which few edges with
+/// light are listed: 8 px when every reach is 2 px, 16 px when reaches of
+/// 12 px list every edge at 8 px, and 32 px when every edge reaches 20 px
+/// (edges without light are never listed).
+#[test]
+fn far_wanted_radius_follows_the_reaches() {
+    let g = trace(&dot_field(150, 3, 1));
+    for (reach, want) in [(2.0, 8.0), (12.0, 16.0), (20.0, 32.0)] {
+        let reach2: Vec<f64> = (0..g.edges.len())
+            .map(|i| if i % 3 == 0 { -1.0 } else { reach * reach })
+            .collect();
+        let far = FarWanted::new(&g, &reach2).expect("short reaches: the lists are kept");
+        assert_eq!(far.radius(), want, "every reach {reach} px");
     }
 }

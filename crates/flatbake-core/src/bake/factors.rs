@@ -192,8 +192,9 @@ impl ReachPasses {
     /// for.
     pub const MARGIN: f64 = 16.0;
     /// The estimate's reach for edges that do not emit, in pixels of the
-    /// level (less than the walk's [`FarWanted`](crate::visibility::FarWanted)
-    /// radius, so that the estimate walks past it only towards emitters).
+    /// level (less than the walk's widest [`FarWanted`](crate::visibility::FarWanted)
+    /// radius, which the estimate gets since its narrower ones would list
+    /// every edge: the estimate walks past it only towards emitters).
     pub const ESTIMATE_REACH: f64 = 16.0;
     /// Passes after the estimate before falling back to a unit of
     /// radiosity.

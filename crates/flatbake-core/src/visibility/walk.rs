@@ -461,7 +461,7 @@ impl<'g> Blocks<'g> {
 /// middle lies in (or a square 2, 4 or 8 times as wide, where the lists
 /// would be too long): a group is the box around its edges and the longest
 /// of their reaches, and its directions from a point cover theirs. Each group is listed under every
-/// cell of [`FarWanted::CELL`] pixels that has points within its reach.
+/// cell (as wide as the radius) that has points within its reach.
 pub struct FarWanted {
     radius: f64,
     cell: f64,
@@ -490,13 +490,44 @@ impl FarWanted {
     /// A point whose cell lists more groups than this walks everywhere:
     /// reading their directions would cost more than the walk saves.
     pub const MOST: usize = 256;
+    /// Narrower cells, in painted pixels, tried before [`FarWanted::CELL`]:
+    /// the narrower the radius, the less of the view a walk resolves
+    /// everywhere.
+    pub const NARROW: [i32; 2] = [8, 16];
+    /// A narrower cell is taken when at most one edge with light in this
+    /// many is listed for it: most of what a point wants then lies within
+    /// the radius. (On the dots most light fades within a few pixels; where
+    /// many edges reach past 16 px, more directions open at a narrow
+    /// radius than it saves, so the pillar field and the real maps keep
+    /// 32 px.)
+    pub const LISTED: usize = 16;
 
     /// For the squared reaches `reach2` of `g`'s edges (negative: no
-    /// light); `None` when the lists would hold more entries than
-    /// [`FarWanted::MOST`] per cell on average even with the coarsest
-    /// groups: most points would walk everywhere anyway.
+    /// light), with the narrowest cell of [`FarWanted::NARROW`] for which
+    /// few edges are listed (else [`FarWanted::CELL`]); `None` when the
+    /// lists would hold more entries than [`FarWanted::MOST`] per cell on
+    /// average even with the coarsest groups: most points would walk
+    /// everywhere anyway.
     pub fn new(g: &Geometry, reach2: &[f64]) -> Option<FarWanted> {
-        let cell = (Self::CELL * g.unit.max(1) as i32) as f64;
+        let lit = reach2.iter().filter(|&&r2| r2 >= 0.0).count();
+        let unit = g.unit.max(1) as i32;
+        let listed = |radius: f64| {
+            g.edges
+                .iter()
+                .zip(reach2)
+                .filter(|&(e, &r2)| Self::listed(e, r2, radius))
+                .count()
+        };
+        let cell = Self::NARROW
+            .into_iter()
+            .find(|&c| listed((c * unit) as f64) * Self::LISTED <= lit)
+            .unwrap_or(Self::CELL);
+        Self::with_cell(g, reach2, cell)
+    }
+
+    /// [`FarWanted::new`] with cells (and radius) of `cell` painted pixels.
+    pub fn with_cell(g: &Geometry, reach2: &[f64], cell: i32) -> Option<FarWanted> {
+        let cell = (cell * g.unit.max(1) as i32) as f64;
         let nx = (g.width as f64 / cell).ceil().max(1.0) as usize;
         let ny = (g.height as f64 / cell).ceil().max(1.0) as usize;
         // Squares of GROUP px, or coarser where their lists would be too
@@ -517,6 +548,18 @@ impl FarWanted {
         })
     }
 
+    /// Whether an edge of squared reach `r2` is listed for `radius`: it has
+    /// light, and its reach plus its length exceeds the radius.
+    fn listed(e: &Edge, r2: f64, radius: f64) -> bool {
+        r2 >= 0.0 && r2.sqrt() + e.len() > radius
+    }
+
+    /// The radius, in pixels of the level: past it only the directions of
+    /// listed edges are walked.
+    pub fn radius(&self) -> f64 {
+        self.radius
+    }
+
     /// The listed edges of `g` (reach plus length past `radius`) grouped
     /// by the `side` px square their middle lies in.
     fn groups(g: &Geometry, reach2: &[f64], radius: f64, side: f64) -> Vec<Group> {
@@ -527,7 +570,7 @@ impl FarWanted {
         let mut of_square: Vec<u32> = vec![u32::MAX; bx * by];
         let mut groups: Vec<Group> = Vec::new();
         for (e, &r2) in g.edges.iter().zip(reach2) {
-            if r2 < 0.0 || r2.sqrt() + e.len() <= radius {
+            if !Self::listed(e, r2, radius) {
                 continue;
             }
             let (x0, x1) = (e.a[0].min(e.b[0]) as f64, e.a[0].max(e.b[0]) as f64);
@@ -685,11 +728,23 @@ impl Sweeper {
         (open < 0.9 * q.kmax()).then_some(far.radius)
     }
 
-    /// Whether `[a, b]` meets an open direction (with a margin for rounding).
-    fn opens(&self, a: f64, b: f64) -> bool {
-        let (a, b) = (a - 1e-9, b + 1e-9);
-        let i = self.open.partition_point(|iv| iv.1 < a);
-        i < self.open.len() && self.open[i].0 <= b
+    /// Whether every open direction in `[a, b]` (each widened by a margin
+    /// for rounding) already hits something nearer than `dmin`; true when
+    /// `[a, b]` meets none.
+    fn open_parts_hidden(&mut self, a: f64, b: f64, dmin: f64) -> bool {
+        const MARGIN: f64 = 1e-9;
+        let mut i = self.open.partition_point(|iv| iv.1 < a - MARGIN);
+        while let Some(&(oa, ob)) = self.open.get(i) {
+            if oa > b + MARGIN {
+                break;
+            }
+            let (lo, hi) = (a.max(oa - MARGIN), b.min(ob + MARGIN));
+            if !self.cover.hides(lo, hi, dmin) {
+                return false;
+            }
+            i += 1;
+        }
+        true
     }
 
     /// Adds edge `ei`'s visible pieces to the coverage, once per walk.
@@ -768,16 +823,22 @@ impl Sweeper {
             if dmin > reach_max {
                 continue;
             }
+            let past_open = closed_past.is_some_and(|d| dmin > d);
             match box_range(&q, x0, y0, x1, y1) {
                 BoxView::Around => {}
                 BoxView::Behind => continue,
                 BoxView::Ranges(ranges) => {
-                    if closed_past.is_some_and(|d| dmin > d)
-                        && !ranges.iter().any(|&(a, b)| self.opens(a, b))
-                    {
-                        continue;
-                    }
-                    if ranges.iter().all(|&(a, b)| self.cover.hides(a, b, dmin)) {
+                    // Past the radius only the open directions count: the
+                    // closed ones are never walked there, so the coverage
+                    // stays empty in them and would keep every block open.
+                    let hidden = if past_open {
+                        ranges
+                            .iter()
+                            .all(|&(a, b)| self.open_parts_hidden(a, b, dmin))
+                    } else {
+                        ranges.iter().all(|&(a, b)| self.cover.hides(a, b, dmin))
+                    };
+                    if hidden {
                         continue;
                     }
                 }
