@@ -496,10 +496,9 @@ impl FarWanted {
     pub const NARROW: [i32; 2] = [8, 16];
     /// A narrower cell is taken when at most one edge with light in this
     /// many is listed for it: most of what a point wants then lies within
-    /// the radius. (On the dots most light fades within a few pixels; where
-    /// many edges reach past 16 px, more directions open at a narrow
-    /// radius than it saves, so the pillar field and the real maps keep
-    /// 32 px.)
+    /// the radius, and few directions are open past it. (On the dots most
+    /// light fades within a few pixels: 8 px; the pillar field and the real
+    /// maps, with many edges reaching farther, keep 32 px.)
     pub const LISTED: usize = 16;
 
     /// For the squared reaches `reach2` of `g`'s edges (negative: no
@@ -823,7 +822,6 @@ impl Sweeper {
             if dmin > reach_max {
                 continue;
             }
-            let past_open = closed_past.is_some_and(|d| dmin > d);
             match box_range(&q, x0, y0, x1, y1) {
                 BoxView::Around => {}
                 BoxView::Behind => continue,
@@ -831,7 +829,7 @@ impl Sweeper {
                     // Past the radius only the open directions count: the
                     // closed ones are never walked there, so the coverage
                     // stays empty in them and would keep every block open.
-                    let hidden = if past_open {
+                    let hidden = if closed_past.is_some_and(|d| dmin > d) {
                         ranges
                             .iter()
                             .all(|&(a, b)| self.open_parts_hidden(a, b, dmin))
