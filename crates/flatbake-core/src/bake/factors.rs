@@ -133,7 +133,12 @@ fn sees_light(
 /// is left out where its factor is below the preset's bound.
 pub fn unit_reach(ctx: &Ctx, geometry: &Geometry) -> Reach {
     let lens: Vec<f64> = geometry.edges.iter().map(|e| e.len()).collect();
-    reach_for(ctx, &lens, &vec![1.0; lens.len()])
+    unit_reach_of(ctx, &lens)
+}
+
+/// [`unit_reach`] for edges of lengths `lens`.
+fn unit_reach_of(ctx: &Ctx, lens: &[f64]) -> Reach {
+    reach_for(ctx, lens, &vec![1.0; lens.len()])
 }
 
 /// The form factors' reach for edges of lengths `lens` whose radiosity is
@@ -230,7 +235,7 @@ impl ReachPasses {
         }
         let geometry = &scene.geometry;
         let lens: Vec<f64> = geometry.edges.iter().map(|e| e.len()).collect();
-        let mut reach = reach_for(ctx, &lens, &vec![1.0; lens.len()]);
+        let mut reach = unit_reach_of(ctx, &lens);
         let most = Self::ESTIMATE_REACH * geometry.unit.max(1) as f64;
         for (e, r) in reach.radius.iter_mut().enumerate() {
             let emits = scene
@@ -338,7 +343,7 @@ impl ReachPasses {
 
     /// Sets up the next pass at a unit of radiosity, which stands.
     fn at_unit(&mut self, ctx: &Ctx) -> bool {
-        self.reach = reach_for(ctx, &self.lens, &vec![1.0; self.lens.len()]);
+        self.reach = unit_reach_of(ctx, &self.lens);
         self.stage = Stage::Unit;
         self.passes += 1;
         true
