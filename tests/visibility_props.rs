@@ -8,6 +8,7 @@ use flatbake_core::geometry::{Edge, Geometry, trace};
 use flatbake_core::level::Level;
 use flatbake_core::visibility::{
     Blocks, FarWanted, Rect, Span, Structures, Sweeper, View, Viewpoint, Wanted, diamond,
+    receiver_keeps,
 };
 use proptest::prelude::*;
 
@@ -604,12 +605,19 @@ fn walk_over_small_blocks_agrees_with_the_sweep() {
 /// fields of dots whose reaches are mostly short, with a few edges of long
 /// reach and some with no light, every free pixel centre (full view) and a
 /// point on every edge (half view) gets the spans of the walk that goes
-/// everywhere, at each radius `FarWanted::new` may choose. Fewer dim spans
-/// are counted with it: blocks were left unwalked.
+/// everywhere, at each radius `FarWanted::new` may choose, with and
+/// without the receiving cosine ([`Wanted::cosine`], which also closes
+/// directions). Fewer dim spans are counted with it: blocks were left
+/// unwalked.
 #[test]
 fn far_wanted_changes_no_wanted_span() {
     let cells = FarWanted::NARROW.into_iter().chain([FarWanted::CELL]);
-    for ((side, sparse, seed), cell) in [(150, 3, 1u64), (130, 6, 2)]
+    let levels = [
+        (150, 3, 1u64, None),
+        (130, 6, 2, None),
+        (150, 3, 1, Some(30.0 * 30.0)),
+    ];
+    for ((side, sparse, seed, cosine), cell) in levels
         .into_iter()
         .flat_map(|level| cells.clone().map(move |c| (level, c)))
     {
@@ -632,6 +640,7 @@ fn far_wanted_changes_no_wanted_span() {
         let wanted = Some(Wanted {
             reach2: &reach2,
             class: None,
+            cosine,
         });
         let mut sw = Sweeper::new();
         let (mut dim_all, mut dim_far) = (0, 0);
@@ -641,7 +650,7 @@ fn far_wanted_changes_no_wanted_span() {
             dim_far += sw.walk_wanted(&blocks, at, f64::INFINITY, &[], wanted, Some(&far), &mut b);
             assert_eq!(
                 a, b,
-                "dots {side} px, one in {sparse}, radius {cell}: point {:?}",
+                "dots {side} px, one in {sparse}, radius {cell}, cosine {cosine:?}: point {:?}",
                 at.p
             );
         }
@@ -665,5 +674,125 @@ fn far_wanted_radius_follows_the_reaches() {
             .collect();
         let far = FarWanted::new(&g, &reach2).expect("short reaches: the lists are kept");
         assert_eq!(far.radius(), want, "every reach {reach} px");
+    }
+}
+
+/// The receiving cosine ([`Wanted::cosine`]) leaves out only spans whose
+/// light is below the bound the reach stands for: from a point on every
+/// edge of a field of dots (half views), the sweep over every edge with
+/// the cosine returns the spans it returns without, less some far ones;
+/// for each of those, the edge's largest cosine (sampled along it) times
+/// the bound at its distance is at most the bound at its reach. The walk
+/// with [`FarWanted`] gives the same spans as the sweep.
+#[test]
+fn receiving_cosine_leaves_out_only_light_below_the_bound() {
+    let g = trace(&dot_field(150, 3, 1));
+    let a = 30.0f64 * 30.0;
+    let w = |r: f64| a / (a + r * r);
+    let reach2: Vec<f64> = (0..g.edges.len())
+        .map(|i| {
+            if i % 29 == 0 {
+                200.0 * 200.0
+            } else {
+                3.0 * 3.0
+            }
+        })
+        .collect();
+    let all: Vec<u32> = (0..g.edges.len() as u32).collect();
+    let far = FarWanted::new(&g, &reach2).expect("short reaches: the lists are kept");
+    let blocks = Blocks::new(&g);
+    let with = |cosine| {
+        Some(Wanted {
+            reach2: &reach2,
+            class: None,
+            cosine,
+        })
+    };
+    let mut sw = Sweeper::new();
+    let mut dropped = 0;
+    for at in free_centres_and_edge_points(&g, 150)
+        .into_iter()
+        .filter(|at| at.view != View::Full)
+    {
+        let (mut plain, mut cut, mut walked): (Vec<Span>, Vec<Span>, Vec<Span>) =
+            (vec![], vec![], vec![]);
+        sw.sweep_wanted(&g.edges, &all, at, with(None), &mut plain);
+        sw.sweep_wanted(&g.edges, &all, at, with(Some(a)), &mut cut);
+        sw.walk_wanted(
+            &blocks,
+            at,
+            f64::INFINITY,
+            &[],
+            with(Some(a)),
+            Some(&far),
+            &mut walked,
+        );
+        let (cw, ww) = (wide(&cut), wide(&walked));
+        assert_eq!(cw.len(), ww.len(), "point {:?}", at.p);
+        for (s, t) in cw.iter().zip(&ww) {
+            assert_eq!(s.edge, t.edge, "point {:?}", at.p);
+            assert!(
+                (s.s0 - t.s0).abs() < 1e-9 && (s.s1 - t.s1).abs() < 1e-9,
+                "point {:?}: {s:?} vs {t:?}",
+                at.p
+            );
+        }
+        let mut rest = cut.iter().peekable();
+        for s in &plain {
+            if rest.peek() == Some(&s) {
+                rest.next();
+                continue;
+            }
+            dropped += 1;
+            let e = &g.edges[s.edge as usize];
+            let (d, r) = (e.distance_sq(at.p).sqrt(), reach2[s.edge as usize].sqrt());
+            let View::Half(n) = at.view else {
+                unreachable!()
+            };
+            let nv = n.vec();
+            let (lo, hi) = e.extent();
+            let c = (0..=1000)
+                .map(|k| {
+                    let q = e.point_at(lo + (hi - lo) * k as f64 / 1000.0);
+                    let (dx, dy) = (q[0] - at.p[0], q[1] - at.p[1]);
+                    (dx * nv[0] as f64 + dy * nv[1] as f64) / dx.hypot(dy)
+                })
+                .fold(0.0f64, f64::max);
+            let l = e.len();
+            let bound = |r: f64| w(r) * std::f64::consts::PI.min(l / r);
+            assert!(
+                c * bound(d) <= bound(r) * (1.0 + 1e-9),
+                "point {:?}: edge {} at {d:.2} px (reach {r}) left out with cosine {c:.4}",
+                at.p,
+                s.edge
+            );
+        }
+        assert!(
+            rest.next().is_none(),
+            "point {:?}: a span only with the cosine",
+            at.p
+        );
+    }
+    assert!(dropped > 100, "{dropped} spans left out by the cosine");
+}
+
+proptest! {
+    /// [`receiver_keeps`] keeps every pair whose bound, times the cosine,
+    /// is above the bound at the reach (`w(r) min(pi, L / r)`, the
+    /// reaches' own bound up to a constant factor).
+    #[test]
+    fn receiver_keeps_what_the_bound_keeps(
+        f in 1.0f64..300.0,
+        l in 0.5f64..600.0,
+        r in 0.5f64..3000.0,
+        t in 0.0f64..1.0,
+        c in 0.0f64..1.0,
+    ) {
+        let a = f * f;
+        let d = (t * r).max(1e-3);
+        let bound = |x: f64| a / (a + x * x) * std::f64::consts::PI.min(l / x);
+        if c * bound(d) > bound(r) * (1.0 + 1e-12) {
+            prop_assert!(receiver_keeps(c * c, a, d * d, r * r), "c {c} d {d} r {r} L {l} A {a}");
+        }
     }
 }

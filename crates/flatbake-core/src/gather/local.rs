@@ -475,6 +475,7 @@ impl Lists {
                             Some(Wanted {
                                 reach2: exact.reaches.squared,
                                 class: None,
+                                cosine: None,
                             }),
                             &mut b.spans,
                         );

@@ -317,7 +317,10 @@ fn visit_point_rows(
         &pixel,
         &view,
         reach.max,
-        Some(&Reaches::new(&reach2)),
+        Some(&match falloff {
+            Some(f) => Reaches::receiving(&reach2, f.a()),
+            None => Reaches::new(&reach2),
+        }),
         &|_| {},
         None,
         &|i, spans| {

@@ -234,6 +234,7 @@ where
     let tree = structures.tree(centres);
     let grid = PointGrid::new(geometry.width, geometry.height, tree.leaf as usize, pixel);
     let reach2 = reaches.map(|r| r.squared);
+    let cosine = reaches.and_then(|r| r.cosine);
     let unreached = std::sync::atomic::AtomicU64::new(0);
     let left_out = std::sync::atomic::AtomicU64::new(0);
     let culled_pairs = tree.for_each_leaf(&|r| grid.count_in(r), reach_max, &|leaf| {
@@ -299,7 +300,11 @@ where
                                 &geometry.edges,
                                 cands,
                                 Viewpoint::new(at(i), view(i), comp),
-                                reach2.map(|reach2| Wanted { reach2, class }),
+                                reach2.map(|reach2| Wanted {
+                                    reach2,
+                                    class,
+                                    cosine,
+                                }),
                                 spans,
                             )
                         }
@@ -315,6 +320,7 @@ where
                                 reach2.map(|reach2| Wanted {
                                     reach2,
                                     class: None,
+                                    cosine,
                                 }),
                                 reaches.and_then(|r| r.far(geometry)),
                                 spans,

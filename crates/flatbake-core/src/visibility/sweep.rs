@@ -36,7 +36,7 @@ impl Sweeper {
             if let Some(w) = wanted
                 && self.pieces.len() > from
             {
-                Self::mark(&mut self.pieces[from..], w.at(edges, ei, Some(j), p));
+                Self::mark(&mut self.pieces[from..], w.at(edges, ei, Some(j), &q));
             }
         }
         if self.pieces.is_empty() {

@@ -653,6 +653,8 @@ impl FarWanted {
 pub struct Reaches<'a> {
     /// Squared reach per edge.
     pub squared: &'a [f64],
+    /// See [`Wanted::cosine`].
+    pub cosine: Option<f64>,
     far: OnceLock<Option<FarWanted>>,
 }
 
@@ -661,7 +663,17 @@ impl<'a> Reaches<'a> {
     pub fn new(squared: &'a [f64]) -> Reaches<'a> {
         Reaches {
             squared,
+            cosine: None,
             far: OnceLock::new(),
+        }
+    }
+
+    /// [`Reaches::new`] for half views whose light carries their cosine,
+    /// for reaches found with falloff constant `a` ([`Wanted::cosine`]).
+    pub fn receiving(squared: &'a [f64], a: f64) -> Reaches<'a> {
+        Reaches {
+            cosine: Some(a),
+            ..Reaches::new(squared)
         }
     }
 
@@ -679,7 +691,7 @@ impl Sweeper {
     /// a part farther than its radius, merged into [`Sweeper::open`], and
     /// that radius; `None` when they are most of the view, or too many to
     /// read, and the walk goes on everywhere.
-    fn open_directions(&mut self, far: &FarWanted, q: &Query) -> Option<f64> {
+    fn open_directions(&mut self, far: &FarWanted, q: &Query, cosine: Option<f64>) -> Option<f64> {
         let list = far.at(q.p);
         if list.len() > FarWanted::MOST {
             return None;
@@ -690,8 +702,18 @@ impl Sweeper {
         for &gi in list {
             let gr = &far.groups[gi as usize];
             let [x0, y0, x1, y1] = gr.bbox;
-            if box_distance_sq(p, x0, y0, x1, y1) > gr.reach * gr.reach {
+            let (near2, r2) = (box_distance_sq(p, x0, y0, x1, y1), gr.reach * gr.reach);
+            if near2 > r2 {
                 continue;
+            }
+            // A half view's cosine may leave the whole group below the
+            // bound (its least distance, longest reach and largest cosine
+            // stand for each of its edges: see `receiver_keeps`).
+            if let Some(a) = cosine.filter(|_| !q.full && near2 >= COSINE_FROM * COSINE_FROM) {
+                let need = cosine2_needed(a, near2, r2);
+                if !q.cosine_above(&[[x0, y0], [x1, y0], [x0, y1], [x1, y1]], need) {
+                    continue;
+                }
             }
             // Its farthest point is a corner.
             let fx = (x0 - p[0]).abs().max((x1 - p[0]).abs());
@@ -747,16 +769,15 @@ impl Sweeper {
     }
 
     /// Adds edge `ei`'s visible pieces to the coverage, once per walk.
+    /// (Whether a piece is wanted is only asked of those that own part of
+    /// the coverage at the end: most pieces a walk inserts lose.)
     #[inline]
-    fn insert_edge(&mut self, q: &Query, edges: &[Edge], ei: u32, wanted: Option<Wanted>) {
+    fn insert_edge(&mut self, q: &Query, edges: &[Edge], ei: u32) {
         if !self.inserted.insert(ei as usize) {
             return;
         }
         let from = self.pieces.len();
         q.pieces(edges, ei, &mut self.pieces);
-        if let Some(w) = wanted {
-            Self::mark(&mut self.pieces[from..], w.at(edges, ei, None, q.p));
-        }
         for pi in from..self.pieces.len() {
             self.cover.insert(&self.pieces, pi as u32, q.p);
         }
@@ -801,10 +822,10 @@ impl Sweeper {
         self.cover.reset(q.kmax());
         self.inserted.clear(edges.len());
         for &ei in seeds {
-            self.insert_edge(&q, edges, ei, wanted);
+            self.insert_edge(&q, edges, ei);
         }
         let closed_past = match (far, wanted) {
-            (Some(far), Some(_)) => self.open_directions(far, &q),
+            (Some(far), Some(w)) => self.open_directions(far, &q, w.cosine),
             _ => None,
         };
         let top = blocks.dims.len() - 1;
@@ -844,7 +865,7 @@ impl Sweeper {
             if level == 0 {
                 let b = y as usize * nx + x as usize;
                 for &ei in &blocks.list[blocks.start[b]..blocks.start[b + 1]] {
-                    self.insert_edge(&q, edges, ei, wanted);
+                    self.insert_edge(&q, edges, ei);
                 }
                 continue;
             }
@@ -879,8 +900,9 @@ impl Sweeper {
                 continue;
             }
             let pc = &self.pieces[o as usize];
-            if !pc.lit {
-                left_out += u64::from(pc.dim);
+            let (lit, dim) = wanted.map_or((pc.lit, pc.dim), |w| w.at(edges, pc.edge, None, &q));
+            if !lit {
+                left_out += u64::from(dim);
                 continue;
             }
             let (k0, k1) = (cover.start(i), cover.iv[i].end);
