@@ -52,6 +52,21 @@ fn first_hit(edges: &[Edge], p: [f64; 2], d: [f64; 2]) -> Option<(u32, f64)> {
 /// the query point, their pseudo-angles may differ by an ulp, and the sweep
 /// and the walk may then disagree on a sliver between them (an axis length
 /// of about 1e-15, found by this test): that is rounding, not a difference.
+/// The spans `a` and `b` (seen from `p`) are the same, up to rounding:
+/// the same edges, in the same order, between the same axis coordinates
+/// within 1e-9 (spans narrower than that are left out of both).
+fn assert_same_spans(a: &[Span], b: &[Span], p: [f64; 2]) {
+    let (a, b) = (wide(a), wide(b));
+    assert_eq!(a.len(), b.len(), "point {p:?}");
+    for (s, t) in a.iter().zip(&b) {
+        assert_eq!(s.edge, t.edge, "point {p:?}");
+        assert!(
+            (s.s0 - t.s0).abs() < 1e-9 && (s.s1 - t.s1).abs() < 1e-9,
+            "point {p:?}: {s:?} vs {t:?}"
+        );
+    }
+}
+
 fn wide(spans: &[Span]) -> Vec<Span> {
     spans
         .iter()
@@ -577,16 +592,8 @@ fn walk_over_small_blocks_agrees_with_the_sweep() {
         let (mut a, mut b): (Vec<Span>, Vec<Span>) = (vec![], vec![]);
         sw.sweep(&g.edges, &all, at, &mut a);
         sw.walk(&blocks, at, f64::INFINITY, &[], &mut b);
-        let (a, b) = (wide(&a), wide(&b));
-        assert_eq!(a.len(), b.len(), "point {:?}", at.p);
-        for (s, t) in a.iter().zip(&b) {
-            assert_eq!(s.edge, t.edge, "point {:?}", at.p);
-            assert!(
-                (s.s0 - t.s0).abs() < 1e-9 && (s.s1 - t.s1).abs() < 1e-9,
-                "point {:?}: {s:?} vs {t:?}",
-                at.p
-            );
-        }
+        assert_same_spans(&a, &b, at.p);
+        let a = wide(&a);
         far_seen += a
             .iter()
             .filter(|s| {
@@ -727,16 +734,7 @@ fn receiving_cosine_leaves_out_only_light_below_the_bound() {
             Some(&far),
             &mut walked,
         );
-        let (cw, ww) = (wide(&cut), wide(&walked));
-        assert_eq!(cw.len(), ww.len(), "point {:?}", at.p);
-        for (s, t) in cw.iter().zip(&ww) {
-            assert_eq!(s.edge, t.edge, "point {:?}", at.p);
-            assert!(
-                (s.s0 - t.s0).abs() < 1e-9 && (s.s1 - t.s1).abs() < 1e-9,
-                "point {:?}: {s:?} vs {t:?}",
-                at.p
-            );
-        }
+        assert_same_spans(&cut, &walked, at.p);
         let mut rest = cut.iter().peekable();
         for s in &plain {
             if rest.peek() == Some(&s) {
