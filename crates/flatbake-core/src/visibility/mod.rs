@@ -306,17 +306,29 @@ impl Query {
         }
     }
 
+    /// Whether the receiving cosine ([`Wanted::cosine`], falloff constant
+    /// `a`) keeps light from the hull of `points` (an edge's ends, or the
+    /// box of a group of edges) at least `d2` away (squared) with reach `r2`
+    /// (squared, the longest of the group's): always for a full view,
+    /// nearer than [`COSINE_FROM`] and for an unlimited reach; else where
+    /// the largest cosine passes [`receiver_keeps`]. The test per edge and
+    /// the walk's closure of a group's directions both ask it, so that a
+    /// closed group holds no edge that is kept.
+    fn receives(&self, points: &[[f64; 2]], a: f64, d2: f64, r2: f64) -> bool {
+        self.full
+            || d2 < COSINE_FROM * COSINE_FROM
+            || !r2.is_finite()
+            || self.cosine_above(points, cosine2_needed(a, d2, r2))
+    }
+
     /// Whether the largest cosine between a half view's normal and a
     /// direction from the point to the convex hull of `points` (segment
     /// ends or box corners, whose hull does not hold the point) has a
-    /// square above `c2` (always for a full view, and for `c2 < 0`). The
-    /// cosine is 1 where the hull meets the normal's ray, else it is
-    /// largest at one of the points (0 for those on or behind the
-    /// half-plane's line). No division: `v^2 > c2 (u^2 + v^2)`.
+    /// square above `c2` (always for `c2 < 0`). The cosine is 1 where the
+    /// hull meets the normal's ray, else it is largest at one of the
+    /// points (0 for those on or behind the half-plane's line). No
+    /// division: `v^2 > c2 (u^2 + v^2)`.
     fn cosine_above(&self, points: &[[f64; 2]], c2: f64) -> bool {
-        if self.full {
-            return true;
-        }
         let (mut umin, mut umax) = (f64::INFINITY, f64::NEG_INFINITY);
         let mut ahead = false;
         for &pt in points {
@@ -581,7 +593,6 @@ impl Wanted<'_> {
     #[inline]
     fn at(&self, edges: &[Edge], ei: u32, j: Option<usize>, q: &Query) -> (bool, bool) {
         let r2 = self.reach2[ei as usize];
-        let cosine = self.cosine.filter(|_| !q.full);
         match self.class.zip(j).map(|(c, j)| c[j]) {
             Some(Reachable::All) => (true, false),
             Some(Reachable::Beyond) => (false, true),
@@ -589,16 +600,12 @@ impl Wanted<'_> {
             _ => {
                 let e = &edges[ei as usize];
                 let d2 = e.distance_sq(q.p);
-                // (An unlimited reach, `reference`'s, takes no cosine.)
                 let lit = r2 >= 0.0
                     && d2 <= r2
-                    && (d2 < COSINE_FROM * COSINE_FROM
-                        || !r2.is_finite()
-                        || cosine.is_none_or(|a| {
-                            let (lo, hi) = e.extent();
-                            let need = cosine2_needed(a, d2, r2);
-                            q.cosine_above(&[e.point_at(lo), e.point_at(hi)], need)
-                        }));
+                    && self.cosine.is_none_or(|a| {
+                        let (lo, hi) = e.extent();
+                        q.receives(&[e.point_at(lo), e.point_at(hi)], a, d2, r2)
+                    });
                 (lit, !lit && r2 >= 0.0)
             }
         }

@@ -709,11 +709,10 @@ impl Sweeper {
             // A half view's cosine may leave the whole group below the
             // bound (its least distance, longest reach and largest cosine
             // stand for each of its edges: see `receiver_keeps`).
-            if let Some(a) = cosine.filter(|_| !q.full && near2 >= COSINE_FROM * COSINE_FROM) {
-                let need = cosine2_needed(a, near2, r2);
-                if !q.cosine_above(&[[x0, y0], [x1, y0], [x0, y1], [x1, y1]], need) {
-                    continue;
-                }
+            if cosine.is_some_and(|a| {
+                !q.receives(&[[x0, y0], [x1, y0], [x0, y1], [x1, y1]], a, near2, r2)
+            }) {
+                continue;
             }
             // Its farthest point is a corner.
             let fx = (x0 - p[0]).abs().max((x1 - p[0]).abs());
