@@ -67,6 +67,24 @@ fn box_range(q: &Query, x0: f64, y0: f64, x1: f64, y1: f64) -> BoxView {
 
 const NONE: u32 = u32::MAX;
 
+/// The code of piece `pi`'s start (`va`) or, if `end`, its end (`vb`).
+#[inline]
+fn vertex_code(pi: u32, end: bool) -> u32 {
+    debug_assert!(pi < NONE / 2, "piece indices fit in 31 bits");
+    pi * 2 + u32::from(end)
+}
+
+/// The vertex that [`vertex_code`] gave `code` (the origin for [`NONE`],
+/// the end of the view, which no span reads).
+#[inline]
+fn vertex(pieces: &[Piece], code: u32) -> [f64; 2] {
+    if code == NONE {
+        return [0.0; 2];
+    }
+    let pc = &pieces[(code / 2) as usize];
+    if code % 2 == 1 { pc.vb } else { pc.va }
+}
+
 /// [`Iv::far`] not yet known (a distance is never negative).
 const UNKNOWN: f64 = f64::NEG_INFINITY;
 
@@ -74,13 +92,17 @@ const UNKNOWN: f64 = f64::NEG_INFINITY;
 #[derive(Clone, Copy, Debug)]
 struct Iv {
     end: f64,
-    /// The vertex whose direction is `end`.
-    vend: [f64; 2],
+    /// The vertex whose direction is `end`: an end of a piece, as
+    /// [`vertex_code`] writes it (kept as a code so that an interval takes
+    /// 24 bytes: insertions shift the buffer's tail).
+    vend: u32,
     /// Nearest piece found so far, or [`NONE`].
     owner: u32,
     /// Farthest distance of the owner over the interval (infinite if none).
     far: f64,
 }
+
+const _: () = assert!(std::mem::size_of::<Iv>() == 24);
 
 /// The one-dimensional angular buffer of the walk: contiguous intervals of
 /// pseudo-angle covering the view, each owned by the nearest piece found so
@@ -102,7 +124,7 @@ impl Coverage {
         self.iv.clear();
         self.iv.push(Iv {
             end: kmax,
-            vend: [0.0; 2],
+            vend: NONE,
             owner: NONE,
             far: f64::INFINITY,
         });
@@ -250,13 +272,13 @@ impl Coverage {
             if lo > s {
                 self.scratch.push(Iv {
                     end: lo,
-                    vend: pc.va,
+                    vend: vertex_code(pi, false),
                     owner: v.owner,
                     far: UNKNOWN,
                 });
             }
             let vhi = if hi == pc.kb && hi < v.end {
-                pc.vb
+                vertex_code(pi, true)
             } else {
                 v.vend
             };
@@ -905,8 +927,13 @@ impl Sweeper {
                 continue;
             }
             let (k0, k1) = (cover.start(i), cover.iv[i].end);
-            let v0 = if i == 0 { pc.va } else { cover.iv[i - 1].vend };
-            self.emit(edges, p, o, (k0, v0), (k1, cover.iv[i].vend), out);
+            let v0 = if i == 0 {
+                pc.va
+            } else {
+                vertex(&self.pieces, cover.iv[i - 1].vend)
+            };
+            let v1 = vertex(&self.pieces, cover.iv[i].vend);
+            self.emit(edges, p, o, (k0, v0), (k1, v1), out);
         }
         left_out
     }
@@ -949,7 +976,7 @@ mod tests {
             c.iv = (1..=n)
                 .map(|i| Iv {
                     end: i as f64 * 0.1,
-                    vend: [0.0; 2],
+                    vend: NONE,
                     owner: NONE,
                     far: f64::INFINITY,
                 })
