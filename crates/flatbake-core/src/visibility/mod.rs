@@ -629,6 +629,13 @@ pub struct Sweeper {
     /// Per event id: its index in `events`, while not yet laid out.
     slot: Marks<u32>,
     sorted: Vec<Event>,
+    /// [`Sweeper::bucket_sort`]'s buckets: where each starts, and each
+    /// event's.
+    bucket_start: Vec<u32>,
+    bucket_of: Vec<u32>,
+    /// Sweeps left that sort with [`Sweeper::bucket_sort`] without first
+    /// trying the insertion sort (which gave up on a recent sweep).
+    bucket_sweeps: u32,
     /// Per piece: its index in `active`, or `u32::MAX`.
     at: Vec<u32>,
     /// Pieces inserted at the current event key.

@@ -2,6 +2,11 @@
 
 use super::*;
 
+/// How many sweeps sort with [`Sweeper::bucket_sort`] straight away after
+/// the insertion sort from the previous order gave up (the next points are
+/// neighbours, where it would most likely give up again).
+const BUCKET_SWEEPS: u32 = 64;
+
 impl Sweeper {
     /// The visible spans seen from `at`, among `candidates` (indices into
     /// `edges`) that belong to its free-space component. Spans are appended
@@ -53,7 +58,7 @@ impl Sweeper {
         }
         let same = self.shape == self.prev_shape;
         std::mem::swap(&mut self.shape, &mut self.prev_shape);
-        self.sort_events(edges.len(), same);
+        self.sort_events(edges.len(), same, q.kmax());
         self.active.clear();
         let n = self.events.len();
         let mut i = 0;
@@ -173,47 +178,105 @@ impl Sweeper {
     }
 
     /// Sorts `events` by key, ties by id: a total order, so the result does
-    /// not depend on the order they came in. They are first laid out in the
-    /// previous sweep's order (neighbouring points see nearly the same
-    /// angular order), which an insertion sort then only has to patch up.
+    /// not depend on the order they came in or on how they are sorted.
+    ///
+    /// Neighbouring points see nearly the same angular order, so the
+    /// events are first laid out in the previous sweep's order, which an
+    /// insertion sort then only has to patch up: linear in the number of
+    /// events plus the number of pairs out of order. Where that number is
+    /// large (hundreds of edges at every distance, as in a field of
+    /// pillars: a step of one pixel moves every near event past many
+    /// others), the insertion sort gives up past a budget of moves and a
+    /// [bucket sort](Sweeper::bucket_sort) does the job, as it then does
+    /// for the next [`BUCKET_SWEEPS`] sweeps without trying.
     ///
     /// `same`: the pieces are those of the previous sweep, in the same order
     /// (neighbours usually see the same edges, split the same way), so an
     /// event's index is that of its counterpart in the previous sweep.
-    fn sort_events(&mut self, edges: usize, same: bool) {
-        let keys = &mut self.sorted;
-        keys.clear();
-        if same && self.codes.len() == self.events.len() {
-            keys.extend(self.codes.iter().map(|&c| self.events[c as usize]));
+    fn sort_events(&mut self, edges: usize, same: bool, kmax: f64) {
+        if self.bucket_sweeps > 0 {
+            self.bucket_sweeps -= 1;
+            self.bucket_sort(kmax);
         } else {
-            self.lay_out_by_id(edges);
-        }
-        let keys = &mut self.sorted;
-        // Insertion sort: linear in the number of events plus the number
-        // of pairs out of order, which is small between neighbours. Past a
-        // budget of moves, a general sort finishes the job.
-        let budget = 4 * keys.len() + 64;
-        let mut moves = 0;
-        let mut i = 1;
-        while i < keys.len() && moves <= budget {
-            let x = keys[i];
-            let mut j = i;
-            while j > 0 && x < keys[j - 1] {
-                keys[j] = keys[j - 1];
-                j -= 1;
+            let keys = &mut self.sorted;
+            keys.clear();
+            if same && self.codes.len() == self.events.len() {
+                keys.extend(self.codes.iter().map(|&c| self.events[c as usize]));
+            } else {
+                self.lay_out_by_id(edges);
             }
-            moves += i - j;
-            keys[j] = x;
-            i += 1;
+            let keys = &mut self.sorted;
+            let budget = keys.len() + 64;
+            let mut moves = 0;
+            let mut i = 1;
+            while i < keys.len() && moves <= budget {
+                let x = keys[i];
+                let mut j = i;
+                while j > 0 && x < keys[j - 1] {
+                    keys[j] = keys[j - 1];
+                    j -= 1;
+                }
+                moves += i - j;
+                keys[j] = x;
+                i += 1;
+            }
+            if i < keys.len() {
+                self.bucket_sweeps = BUCKET_SWEEPS;
+                self.bucket_sort(kmax);
+            }
         }
-        if i < keys.len() {
-            keys.sort_unstable();
-        }
+        let keys = &self.sorted;
         self.order.clear();
         self.order.extend(keys.iter().map(|k| k.id()));
         self.codes.clear();
         self.codes.extend(keys.iter().map(|k| k.code()));
         std::mem::swap(&mut self.events, &mut self.sorted);
+    }
+
+    /// Sorts `events` into `sorted` in [`Sweeper::sort_events`]'s order,
+    /// whatever order they come in: a counting sort into one bucket per
+    /// event over `[0, kmax]`, then an insertion sort over the whole. The
+    /// bucket is a non-decreasing function of the key in
+    /// [`f64::total_cmp`]'s order, so the insertion sort only reorders
+    /// events within a bucket (it would sort correctly whatever the
+    /// buckets; they make it linear).
+    fn bucket_sort(&mut self, kmax: f64) {
+        let n = self.events.len();
+        let nb = n.max(1);
+        let scale = nb as f64 / kmax;
+        let bucket = |ev: &Event| -> usize {
+            let k = ev.key();
+            if k.is_nan() {
+                if k.is_sign_negative() { 0 } else { nb - 1 }
+            } else {
+                // Negative keys (and -0) go to the first bucket, keys past
+                // `kmax` (and infinity) to the last.
+                ((k.max(0.0) * scale) as usize).min(nb - 1)
+            }
+        };
+        let start = &mut self.bucket_start;
+        start.clear();
+        start.resize(nb + 1, 0);
+        self.bucket_of.clear();
+        for ev in &self.events {
+            let b = bucket(ev);
+            self.bucket_of.push(b as u32);
+            start[b + 1] += 1;
+        }
+        for b in 0..nb {
+            start[b + 1] += start[b];
+        }
+        let keys = &mut self.sorted;
+        keys.clear();
+        keys.resize(n, Event(0));
+        for (ev, &b) in self.events.iter().zip(&self.bucket_of) {
+            let at = &mut start[b as usize];
+            keys[*at as usize] = *ev;
+            *at += 1;
+        }
+        // Out of order now only within a bucket (a few events each): one
+        // insertion sort over the whole finishes it.
+        insertion_sort(keys);
     }
 
     /// Lays `events` out in the previous sweep's order by id (the events
@@ -241,6 +304,59 @@ impl Sweeper {
             // A repeated candidate gave two events one id: start afresh.
             keys.clear();
             keys.extend_from_slice(&self.events);
+        }
+    }
+}
+
+/// Sorts `keys` by insertion: linear in their number plus the number of
+/// pairs out of order.
+fn insertion_sort(keys: &mut [Event]) {
+    for i in 1..keys.len() {
+        let x = keys[i];
+        let mut j = i;
+        while j > 0 && x < keys[j - 1] {
+            keys[j] = keys[j - 1];
+            j -= 1;
+        }
+        keys[j] = x;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Keys as a sweep makes them (pseudo-angles in `[0, kmax]`), with the
+    /// odd ones a degenerate query gives: equal keys, -0, NaN of both signs,
+    /// infinity and keys past `kmax`.
+    fn key() -> impl Strategy<Value = f64> {
+        prop_oneof![
+            8 => 0.0..4.0f64,
+            2 => (0u32..8).prop_map(|i| i as f64 * 0.5),
+            1 => Just(-0.0),
+            1 => Just(f64::NAN),
+            1 => Just(-f64::NAN),
+            1 => Just(f64::INFINITY),
+            1 => 4.0..9.0f64,
+        ]
+    }
+
+    proptest! {
+        /// The bucket sort gives the order of a plain sort of the events
+        /// (key in `total_cmp`'s order, then id, then code), for full and
+        /// half views.
+        #[test]
+        fn bucket_sort_agrees_with_a_plain_sort(
+            keys in prop::collection::vec((key(), 0u32..64, 0u32..64), 0..300),
+            half in any::<bool>(),
+        ) {
+            let mut s = Sweeper::new();
+            s.events = keys.iter().map(|&(k, id, code)| Event::new(k, id, code)).collect();
+            let mut want = s.events.clone();
+            want.sort_unstable();
+            s.bucket_sort(if half { 2.0 } else { 4.0 });
+            prop_assert_eq!(&s.sorted, &want);
         }
     }
 }
