@@ -227,28 +227,38 @@ impl Coverage {
 
     /// Lets piece `pi` take every part of `[ka, kb)` where it is nearer
     /// (seen from `p`).
+    ///
+    /// Each run of consecutive intervals that the piece wins is rebuilt on
+    /// its own; the intervals between runs stay as they are. A far piece
+    /// seen through a few gaps overlaps many intervals and wins one or two.
     fn insert(&mut self, pieces: &[Piece], pi: u32, p: [f64; 2]) {
         let pc = pieces[pi as usize];
-        let n = self.iv.len();
-        let first = self.find(pc.ka);
+        let mut i = self.find(pc.ka);
         // An interval whose owner is nowhere as far as the piece comes
         // near `p` keeps its owner without a ray test (walked near to far,
         // most pieces lose everywhere). The margin covers the rounding of
         // both distances, so the test only decides what the ray test would.
         let near = pc.nearest(p) * (1.0 - 1e-9);
-        // Quick rejection: hidden everywhere it overlaps.
-        let mut i = first;
-        let mut wins_any = false;
-        while i < n && self.start(i) < pc.kb {
-            if self.wins(pieces, pi, near, i) {
-                wins_any = true;
-                break;
+        loop {
+            while i < self.iv.len() && self.start(i) < pc.kb {
+                if self.wins(pieces, pi, near, i) {
+                    break;
+                }
+                i += 1;
             }
-            i += 1;
+            if i >= self.iv.len() || self.start(i) >= pc.kb {
+                return;
+            }
+            i = self.rebuild_run(pieces, pi, near, i);
         }
-        if !wins_any {
-            return;
-        }
+    }
+
+    /// Gives piece `pi` the run of intervals it wins from interval `i` on
+    /// (it wins `i`), merged with equal neighbours; returns the index of
+    /// the first interval after the run.
+    fn rebuild_run(&mut self, pieces: &[Piece], pi: u32, near: f64, mut i: usize) -> usize {
+        let pc = pieces[pi as usize];
+        let n = self.iv.len();
         let piece_far = |o: u32, k0: f64, k1: f64| {
             if o == NONE {
                 f64::INFINITY
@@ -257,18 +267,14 @@ impl Coverage {
                 p.distance_at(k0).max(p.distance_at(k1))
             }
         };
-        // Rebuild the overlapped range from the first interval the piece
-        // wins to the last (and merge with equal neighbours): the others
-        // stay as they are. A far piece seen through a few gaps overlaps
-        // many intervals and wins one or two.
         let mut a = i;
         self.scratch.clear();
-        // Scratch length and next interval after the last one it wins.
-        let mut kept = (0, i);
         while i < n && self.start(i) < pc.kb {
             let (s, v) = (self.start(i), self.iv[i]);
+            if i > a && !self.wins(pieces, pi, near, i) {
+                break;
+            }
             let (lo, hi) = (s.max(pc.ka), v.end.min(pc.kb));
-            let wins = self.wins(pieces, pi, near, i);
             if lo > s {
                 self.scratch.push(Iv {
                     end: lo,
@@ -282,13 +288,11 @@ impl Coverage {
             } else {
                 v.vend
             };
-            // An interval the piece leaves whole keeps its farthest distance.
-            let whole = !wins && lo == s && hi == v.end;
             self.scratch.push(Iv {
                 end: hi,
                 vend: vhi,
-                owner: if wins { pi } else { v.owner },
-                far: if whole { v.far } else { UNKNOWN },
+                owner: pi,
+                far: UNKNOWN,
             });
             if v.end > hi {
                 self.scratch.push(Iv {
@@ -299,13 +303,8 @@ impl Coverage {
                 });
             }
             i += 1;
-            if wins {
-                kept = (self.scratch.len(), i);
-            }
         }
-        // Past the last interval the piece wins, nothing changes.
-        self.scratch.truncate(kept.0);
-        let mut b = kept.1;
+        let mut b = i;
         // The first run also takes in the interval before (not in `scratch`).
         let mut first_run = 1;
         if a > 0 && self.iv[a - 1].owner == self.scratch[0].owner {
@@ -340,8 +339,10 @@ impl Coverage {
             seg_start = t.end;
             run = 0;
         }
+        let next = a + out.len();
         self.iv.splice(a..b, out.drain(..));
         self.out = out;
+        next
     }
 }
 
