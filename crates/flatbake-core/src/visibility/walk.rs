@@ -305,24 +305,23 @@ impl Coverage {
             i += 1;
         }
         let mut b = i;
-        // The first run also takes in the interval before (not in `scratch`).
-        let mut first_run = 1;
+        // The run also takes in the interval before and the one after
+        // (not in `scratch`) where they have the owner of its ends.
         if a > 0 && self.iv[a - 1].owner == self.scratch[0].owner {
             a -= 1;
-            first_run = 2;
         }
         if b < n && self.iv[b].owner == self.scratch[self.scratch.len() - 1].owner {
             self.scratch.push(self.iv[b]);
             b += 1;
         }
-        // Consecutive pieces of one owner become one interval; one that is
-        // an old interval unchanged keeps its distance.
+        // Consecutive pieces of one owner become one interval, with the
+        // owner's farthest distance over it (every interval written here
+        // is new or grown: the piece's, a part of one it split, or a
+        // neighbour merged).
         let mut out = std::mem::take(&mut self.out);
         out.clear();
         let mut seg_start = self.start(a);
-        let mut run = first_run - 1;
         for (j, t) in self.scratch.iter().enumerate() {
-            run += 1;
             if self
                 .scratch
                 .get(j + 1)
@@ -330,14 +329,9 @@ impl Coverage {
             {
                 continue;
             }
-            let far = if run == 1 && t.far != UNKNOWN {
-                t.far
-            } else {
-                piece_far(t.owner, seg_start, t.end)
-            };
+            let far = piece_far(t.owner, seg_start, t.end);
             out.push(Iv { far, ..*t });
             seg_start = t.end;
-            run = 0;
         }
         let next = a + out.len();
         self.iv.splice(a..b, out.drain(..));
