@@ -48,10 +48,6 @@ fn first_hit(edges: &[Edge], p: [f64; 2], d: [f64; 2]) -> Option<(u32, f64)> {
     best
 }
 
-/// The spans wider than rounding. Where two vertices are collinear with
-/// the query point, their pseudo-angles may differ by an ulp, and the sweep
-/// and the walk may then disagree on a sliver between them (an axis length
-/// of about 1e-15, found by this test): that is rounding, not a difference.
 /// The spans `a` and `b` (seen from `p`) are the same, up to rounding:
 /// the same edges, in the same order, between the same axis coordinates
 /// within 1e-9 (spans narrower than that are left out of both).
@@ -67,6 +63,10 @@ fn assert_same_spans(a: &[Span], b: &[Span], p: [f64; 2]) {
     }
 }
 
+/// The spans wider than rounding. Where two vertices are collinear with
+/// the query point, their pseudo-angles may differ by an ulp, and the sweep
+/// and the walk may then disagree on a sliver between them (an axis length
+/// of about 1e-15, found by this test): that is rounding, not a difference.
 fn wide(spans: &[Span]) -> Vec<Span> {
     spans
         .iter()

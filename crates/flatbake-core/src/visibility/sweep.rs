@@ -205,22 +205,8 @@ impl Sweeper {
             } else {
                 self.lay_out_by_id(edges);
             }
-            let keys = &mut self.sorted;
-            let budget = keys.len() + 64;
-            let mut moves = 0;
-            let mut i = 1;
-            while i < keys.len() && moves <= budget {
-                let x = keys[i];
-                let mut j = i;
-                while j > 0 && x < keys[j - 1] {
-                    keys[j] = keys[j - 1];
-                    j -= 1;
-                }
-                moves += i - j;
-                keys[j] = x;
-                i += 1;
-            }
-            if i < keys.len() {
+            let budget = self.sorted.len() + 64;
+            if !insertion_sort(&mut self.sorted, budget) {
                 self.bucket_sweeps = BUCKET_SWEEPS;
                 self.bucket_sort(kmax);
             }
@@ -276,7 +262,7 @@ impl Sweeper {
         }
         // Out of order now only within a bucket (a few events each): one
         // insertion sort over the whole finishes it.
-        insertion_sort(keys);
+        insertion_sort(keys, usize::MAX);
     }
 
     /// Lays `events` out in the previous sweep's order by id (the events
@@ -309,17 +295,24 @@ impl Sweeper {
 }
 
 /// Sorts `keys` by insertion: linear in their number plus the number of
-/// pairs out of order.
-fn insertion_sort(keys: &mut [Event]) {
+/// pairs out of order. Gives up, leaving them partly sorted, once that
+/// number passes `budget` moves; returns whether they are sorted.
+fn insertion_sort(keys: &mut [Event], budget: usize) -> bool {
+    let mut moves = 0;
     for i in 1..keys.len() {
+        if moves > budget {
+            return false;
+        }
         let x = keys[i];
         let mut j = i;
         while j > 0 && x < keys[j - 1] {
             keys[j] = keys[j - 1];
             j -= 1;
         }
+        moves += i - j;
         keys[j] = x;
     }
+    true
 }
 
 #[cfg(test)]
