@@ -237,6 +237,82 @@ fn patches_are_no_longer_than_a_multiple_of_their_clearance() {
     assert_eq!(Patches::new(&g, 4.0).of_edge(corridor).len(), 1);
 }
 
+/// A patch takes a preset's quadrature points spread over its edge's
+/// longest patch: a one-pixel face of a pillar in the open takes one
+/// point, a wall as long as the patch length every point, and patches that
+/// their clearance shortened, or that meet a concave corner, every point.
+#[test]
+fn patches_take_quadrature_points_by_length() {
+    use flatbake_core::geometry::{Normal, trace};
+    use flatbake_core::transport::Patches;
+    // A room 16 x 12 with a one-pixel pillar in the open, a 5-px block
+    // (whose faces meet no concave corner), and an L-shaped notch in the
+    // right wall.
+    let mut rows = vec!["#".repeat(18)];
+    for y in 0..12 {
+        let mut r: Vec<char> = format!("#{}#", ".".repeat(16)).chars().collect();
+        if y == 3 {
+            r[4] = '#';
+        }
+        if (7..9).contains(&y) {
+            for c in &mut r[3..8] {
+                *c = '#';
+            }
+        }
+        if y < 2 {
+            r[16] = '#';
+        }
+        rows.push(r.into_iter().collect());
+    }
+    rows.push("#".repeat(18));
+    let level = ascii(&refs(&rows), &[('#', wall(0.5))]);
+    let g = trace(&level);
+    let find = |normal: Normal, line: f64, len: f64| {
+        g.edges
+            .iter()
+            .position(|e| e.normal == normal && e.line() == line && e.len() == len)
+            .unwrap_or_else(|| panic!("an edge {normal:?} at {line}, {len} long"))
+    };
+    let knobs = Quality::Normal.knobs();
+    let (h, q) = (knobs.patch_len, knobs.quad);
+    let p = Patches::new_where(&g, h, knobs.per_clearance, |_| true);
+    let points = |e: usize| p.of_edge(e).map(|i| p.points(i, q)).collect::<Vec<usize>>();
+    // The pillar's four faces, one point each.
+    for (n, line) in [
+        (Normal::Up, 4.0),
+        (Normal::Down, 5.0),
+        (Normal::Left, 4.0),
+        (Normal::Right, 5.0),
+    ] {
+        assert_eq!(points(find(n, line, 1.0)), [1], "pillar face {n:?}");
+    }
+    // The block's top, 5 px: two patches of 2.5 px, two points each (no
+    // farther apart than three on a 4 px patch); its 2-px side towards the
+    // room, two; its side 2 px from the left wall, whose clearance
+    // shortens its patches, every point.
+    assert_eq!(points(find(Normal::Up, 8.0, 5.0)), [2, 2]);
+    assert_eq!(points(find(Normal::Right, 8.0, 2.0)), [2]);
+    assert_eq!(points(find(Normal::Left, 3.0, 2.0)), [q]);
+    // The notch's floor meets the right wall in a concave corner: every
+    // point, though it is one pixel long and open in front.
+    assert_eq!(points(find(Normal::Down, 3.0, 1.0)), [q]);
+    // Unshortened 4 px patches of the long walls: every point.
+    assert!(
+        points(find(Normal::Down, 1.0, 15.0))
+            .iter()
+            .all(|&k| k == q)
+    );
+    // A patch shortened by its clearance (a one-pixel corridor): every point.
+    let narrow = ascii(&["######", "#....#", "######"], &[('#', wall(0.5))]);
+    let g = trace(&narrow);
+    let corridor = find_in(&g, Normal::Down, 1.0);
+    let p = Patches::new_where(&g, h, knobs.per_clearance, |_| true);
+    assert!(p.of_edge(corridor).all(|i| p.points(i, q) == q));
+    // Without the clearance rule, a 4 px corridor wall is one full patch.
+    let p = Patches::new(&g, h);
+    assert!(p.of_edge(corridor).all(|i| p.points(i, q) == q));
+}
+
 fn find_in(
     g: &flatbake_core::geometry::Geometry,
     normal: flatbake_core::geometry::Normal,

@@ -203,7 +203,8 @@ struct RawRows<'a> {
 /// visited, so they are never all kept.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct SlopeRows {
-    /// Quadrature points per patch.
+    /// The preset's quadrature points per patch; a patch has its
+    /// [`Patches::points`] of them.
     pub q: usize,
     /// Row starts, one row per patch (CSR).
     pub row_ptr: Vec<usize>,
@@ -227,16 +228,24 @@ impl SlopeRows {
     /// numerator `sum_k w_k (x_k - 1/2) B_k` is
     /// `e * sum_k w_k (x_k - 1/2) + rho * sum_j G_pj B_j`.
     pub fn slopes(&self, patches: &Patches, rho: &[f64], e: &[f64], b: &[f64]) -> Vec<f64> {
-        let (xs, ws) = gauss_legendre(self.q);
-        let den: f64 = xs
-            .iter()
-            .zip(ws)
-            .map(|(x, w)| w * (x - 0.5) * (x - 0.5))
-            .sum();
-        let odd: f64 = xs.iter().zip(ws).map(|(x, w)| w * (x - 0.5)).sum();
+        // Per number of points: the least-squares denominator and the
+        // emission's odd moment.
+        let moments: Vec<(f64, f64)> = (1..=self.q)
+            .map(|q| {
+                let (xs, ws) = gauss_legendre(q);
+                let den = xs
+                    .iter()
+                    .zip(ws)
+                    .map(|(x, w)| w * (x - 0.5) * (x - 0.5))
+                    .sum();
+                let odd = xs.iter().zip(ws).map(|(x, w)| w * (x - 0.5)).sum();
+                (den, odd)
+            })
+            .collect();
         (0..patches.len())
             .into_par_iter()
             .map(|p| {
+                let (den, odd) = moments[patches.points(p, self.q) - 1];
                 if den == 0.0 || rho[p] == 0.0 {
                     return 0.0;
                 }
@@ -268,53 +277,67 @@ pub fn wanted_reach(reach: &Reach, lit: impl Fn(usize) -> bool) -> Vec<f64> {
         .collect()
 }
 
-/// The quadrature points of patches `which` at the Gauss-Legendre abscissae
-/// `xs` (on [0, 1]), each with the free pixel in front of it.
-fn query_points(
-    geometry: &Geometry,
-    patches: &Patches,
-    xs: &[f64],
-    which: impl Iterator<Item = usize>,
-) -> (Vec<[f64; 2]>, Vec<[i32; 2]>) {
-    let edges = &geometry.edges;
-    let (mut pos, mut pixel) = (Vec::new(), Vec::new());
-    for p in which {
-        let e = &edges[patches.edge[p] as usize];
-        let (s0, s1) = patches.bounds(edges, p);
-        for &x in xs {
-            let s = s0 + x * (s1 - s0);
-            pos.push(e.point_at(s));
-            pixel.push(e.free_pixel_at(s.floor() as i32));
-        }
-    }
-    (pos, pixel)
+/// The quadrature points of patches `which`, each patch's
+/// [`Patches::points`] of a preset's `q` at their Gauss-Legendre abscissae,
+/// one patch after another: per point its position, the free pixel in
+/// front of it, and which of `which` it belongs to; and where each of
+/// `which`'s points start.
+struct QueryPoints {
+    pos: Vec<[f64; 2]>,
+    pixel: Vec<[i32; 2]>,
+    owner: Vec<u32>,
+    start: Vec<usize>,
 }
 
-/// Runs `f(point, its row)` for the quadrature points of patches `which`
-/// (point `i` belongs to `which[i / q]`): each point's exact visibility and
-/// its factors `K(x, j)` towards the patches it sees within their reach. The
-/// one visit behind both [`form_factors`] and [`estimate_entries`].
+impl QueryPoints {
+    fn new(geometry: &Geometry, patches: &Patches, q: usize, which: &[usize]) -> QueryPoints {
+        let edges = &geometry.edges;
+        let mut pts = QueryPoints {
+            pos: Vec::new(),
+            pixel: Vec::new(),
+            owner: Vec::new(),
+            start: Vec::with_capacity(which.len() + 1),
+        };
+        pts.start.push(0);
+        for (w, &p) in which.iter().enumerate() {
+            let e = &edges[patches.edge[p] as usize];
+            let (s0, s1) = patches.bounds(edges, p);
+            for &x in gauss_legendre(patches.points(p, q)).0 {
+                let s = s0 + x * (s1 - s0);
+                pts.pos.push(e.point_at(s));
+                pts.pixel.push(e.free_pixel_at(s.floor() as i32));
+                pts.owner.push(w as u32);
+            }
+            pts.start.push(pts.pos.len());
+        }
+        pts
+    }
+}
+
+/// Runs `f(w, k, row)` for point `k` of each patch `which[w]` (its
+/// [`Patches::points`] of a preset's `q`): the point's exact visibility and
+/// its factors `K(x, j)` towards the patches it sees within their reach.
+/// The one visit behind both [`form_factors`] and [`estimate_entries`].
 fn visit_point_rows(
     structures: &Structures,
     patches: &Patches,
-    xs: &[f64],
+    q: usize,
     which: &[usize],
     falloff: Option<Falloff>,
     reach: &Reach,
-    f: &(dyn Fn(usize, Vec<(u32, f64)>) + Sync),
+    f: &(dyn Fn(usize, usize, Vec<(u32, f64)>) + Sync),
 ) -> VisitStats {
     let geometry = structures.geometry();
     let edges = &geometry.edges;
-    let q = xs.len();
-    let (pos, pixel) = query_points(geometry, patches, xs, which.iter().copied());
-    let normal = |i: usize| edges[patches.edge[which[i / q]] as usize].normal;
+    let pts = QueryPoints::new(geometry, patches, q, which);
+    let normal = |i: usize| edges[patches.edge[which[pts.owner[i] as usize]] as usize].normal;
     let view = |i: usize| View::Half(normal(i));
     // Every edge receives light: each is wanted within its reach.
     let reach2 = wanted_reach(reach, |_| true);
     for_each_visibility_counted(
         structures,
-        Some(&pos),
-        &pixel,
+        Some(&pts.pos),
+        &pts.pixel,
         &view,
         reach.max,
         Some(&match falloff {
@@ -325,8 +348,17 @@ fn visit_point_rows(
         None,
         &|i, spans| {
             let mut out = Vec::new();
-            point_factors(edges, patches, pos[i], normal(i), spans, falloff, &mut out);
-            f(i, out);
+            point_factors(
+                edges,
+                patches,
+                pts.pos[i],
+                normal(i),
+                spans,
+                falloff,
+                &mut out,
+            );
+            let w = pts.owner[i] as usize;
+            f(w, i - pts.start[w], out);
         },
     )
 }
@@ -351,38 +383,39 @@ pub fn estimate_entries(
     if n == 0 || samples == 0 {
         return 0;
     }
-    let (xs, ws) = gauss_legendre(quad);
-    let q = xs.len();
     let k = samples.min(n);
     // Patch i * n / k for i < k: evenly spread, deterministic.
     let picked: Vec<usize> = (0..k).map(|i| i * n / k).collect();
     // Per sampled patch, its points' rows (in point order).
-    let seen: Vec<Mutex<Vec<PointRow>>> = (0..k).map(|_| Mutex::new(vec![Vec::new(); q])).collect();
+    let seen: Vec<Mutex<Vec<PointRow>>> = picked
+        .iter()
+        .map(|&p| Mutex::new(vec![Vec::new(); patches.points(p, quad)]))
+        .collect();
     visit_point_rows(
         structures,
         patches,
-        xs,
+        quad,
         &picked,
         falloff,
         reach,
-        &|i, row| {
-            seen[i / q]
-                .lock()
-                .expect("no panics while holding the lock")[i % q] = row;
+        &|w, k, row| {
+            seen[w].lock().expect("no panics while holding the lock")[k] = row;
         },
     );
     let counted: usize = seen
         .into_iter()
         .map(|s| {
             let rows = s.into_inner().expect("no panics while holding the lock");
+            let (xs, ws) = gauss_legendre(rows.len());
             merge_points(&rows, xs, ws, sliver).0.len()
         })
         .sum();
     (counted as f64 * n as f64 / k as f64).ceil() as u64
 }
 
-/// Computes the form factors with `quad` Gauss-Legendre points per patch,
-/// and the slope rows that the points' rows leave behind.
+/// Computes the form factors with Gauss-Legendre points on every patch
+/// (its [`Patches::points`] of `quad`), and the slope rows that the points'
+/// rows leave behind.
 ///
 /// A patch's smallest factors, together at most `sliver` of its row's sum,
 /// are left out of its row, and the rest of the row shares their part (the
@@ -404,36 +437,45 @@ pub fn form_factors(
     reach: &Reach,
     sliver: f64,
 ) -> (FormFactors, SlopeRows, VisitStats) {
-    let (xs, ws) = gauss_legendre(quad);
-    let q = xs.len();
     let n = patches.len();
     let pending: Vec<Mutex<Arrived>> = (0..n).map(|_| Default::default()).collect();
     // Per patch, once merged: `(j, F0_pj, G_pj)`, the raw row's sum and
     // how many slivers left it.
     let merged: Vec<OnceLock<Merged>> = (0..n).map(|_| OnceLock::new()).collect();
     let all: Vec<usize> = (0..n).collect();
-    let stats = visit_point_rows(structures, patches, xs, &all, falloff, reach, &|i, row| {
-        let (p, k) = (i / q, i % q);
-        let complete = {
-            let mut slot = pending[p].lock().expect("no panics while holding the lock");
-            let (arrived, rows) = &mut *slot;
-            if rows.is_empty() {
-                rows.resize_with(q, Vec::new);
+    let stats = visit_point_rows(
+        structures,
+        patches,
+        quad,
+        &all,
+        falloff,
+        reach,
+        &|p, k, row| {
+            let q = patches.points(p, quad);
+            let complete = {
+                let mut slot = pending[p].lock().expect("no panics while holding the lock");
+                let (arrived, rows) = &mut *slot;
+                if rows.is_empty() {
+                    rows.resize_with(q, Vec::new);
+                }
+                rows[k] = row;
+                *arrived += 1;
+                (*arrived == q).then(|| std::mem::take(rows))
+            };
+            if let Some(rows) = complete {
+                let (xs, ws) = gauss_legendre(q);
+                let row = merge_points(&rows, xs, ws, sliver);
+                merged[p].set(row).expect("each patch is merged once");
             }
-            rows[k] = row;
-            *arrived += 1;
-            (*arrived == q).then(|| std::mem::take(rows))
-        };
-        if let Some(rows) = complete {
-            let row = merge_points(&rows, xs, ws, sliver);
-            merged[p].set(row).expect("each patch is merged once");
-        }
-    });
+        },
+    );
     // A point that was never visited has an empty row, as every point of a
     // patch that nothing reaches.
     for (p, slot) in pending.into_iter().enumerate() {
         let (_, mut rows) = slot.into_inner().expect("no panics while holding the lock");
         if merged[p].get().is_none() {
+            let q = patches.points(p, quad);
+            let (xs, ws) = gauss_legendre(q);
             rows.resize_with(q, Vec::new);
             merged[p]
                 .set(merge_points(&rows, xs, ws, sliver))
@@ -445,7 +487,7 @@ pub fn form_factors(
         .map(|m| m.into_inner().unwrap_or_default())
         .collect();
     let len: Vec<f64> = (0..n).map(|p| patches.length(p)).collect();
-    let (slopes, raw_val, sum, counts) = symmetric_rows(merged, q);
+    let (slopes, raw_val, sum, counts) = symmetric_rows(merged, quad);
     let raw = RawRows {
         row_ptr: &slopes.row_ptr,
         col: &slopes.col,

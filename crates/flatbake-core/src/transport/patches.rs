@@ -18,6 +18,10 @@ pub struct Patches {
     pub step: Vec<f64>,
     /// Edge of each patch.
     pub edge: Vec<u32>,
+    /// Per edge: the longest patch its rules allowed (the patch length, or
+    /// less where its clearance is narrow). The form factors' quadrature
+    /// points are spaced by it ([`Patches::points`]).
+    pub longest: Vec<f64>,
 }
 
 impl Patches {
@@ -39,10 +43,11 @@ impl Patches {
         let mut first = Vec::with_capacity(geometry.edges.len() + 1);
         let mut step = Vec::with_capacity(geometry.edges.len());
         let mut edge = Vec::new();
+        let mut longest_of = Vec::with_capacity(geometry.edges.len());
         first.push(0);
         for (i, e) in geometry.edges.iter().enumerate() {
             let len = e.len();
-            let n = if keep(i) {
+            let (n, longest) = if keep(i) {
                 let longest = match per_clearance {
                     // Clearances past patch_len / k cannot shorten a patch.
                     Some(k) if k < patch_len => {
@@ -51,15 +56,40 @@ impl Patches {
                     }
                     _ => patch_len,
                 };
-                ((len / longest).ceil() as usize).max(1)
+                let n = ((len / longest).ceil() as usize).max(1);
+                // Patches its clearance shortened, or beside a concave
+                // corner, keep every point: the light they exchange with
+                // walls a pixel or two away varies steeply along them.
+                let keeps_all = longest < patch_len || concave_end(geometry, e);
+                (n, if keeps_all { len / n as f64 } else { longest })
             } else {
-                0
+                (0, patch_len)
             };
             step.push(len / n as f64);
+            longest_of.push(longest);
             edge.extend(std::iter::repeat_n(i as u32, n));
             first.push(edge.len() as u32);
         }
-        Patches { first, step, edge }
+        Patches {
+            first,
+            step,
+            edge,
+            longest: longest_of,
+        }
+    }
+
+    /// How many of a preset's `q` quadrature points patch `p` takes: as
+    /// many as keep them no farther apart than on a patch of its edge's
+    /// longest length, `ceil(q L_p / longest)`, at least 1 and at most `q`.
+    /// A one-pixel face in the open (a pillar's, a dot's) is a patch a
+    /// quarter of `normal`'s length and takes one point; a patch that its
+    /// clearance shortened keeps all `q`.
+    pub fn points(&self, p: usize, q: usize) -> usize {
+        let e = self.edge[p] as usize;
+        // The relative slack keeps a patch of the longest length, cut
+        // with rounding, at `q`.
+        let share = self.step[e] / self.longest[e] * (1.0 - 1e-9);
+        ((q as f64 * share).ceil() as usize).clamp(1, q)
     }
 
     /// Number of patches.
@@ -156,6 +186,21 @@ pub fn clearance(geometry: &Geometry, e: &Edge, cap: usize) -> usize {
     let quartile = (probes.len() - 1) / 4;
     let (_, q, _) = probes.select_nth_unstable(quartile);
     (*q).max(1)
+}
+
+/// Whether edge `e` meets a concave corner at either end: the wall goes
+/// on in front of it there (the pixel beyond the end, beside the free
+/// pixel in front of the edge's last unit segment, is solid or outside).
+fn concave_end(geometry: &Geometry, e: &Edge) -> bool {
+    let (lo, hi) = e.extent();
+    let a = axis_vec(e.normal);
+    let (ax, ay) = (a[0] as i64, a[1] as i64);
+    let solid = |[x, y]: [i32; 2], step: i64| {
+        geometry
+            .component_at(x as i64 + step * ax, y as i64 + step * ay)
+            .is_none()
+    };
+    solid(e.free_pixel_at(lo as i32), -1) || solid(e.free_pixel_at(hi as i32 - 1), 1)
 }
 
 /// Unit vector along an edge's axis (`+y` for vertical edges, `+x` otherwise).
