@@ -35,7 +35,9 @@ pub struct Knobs {
     /// alone.
     #[serde(default)]
     pub per_clearance: Option<f64>,
-    /// Gauss-Legendre points per patch for the form factors.
+    /// Gauss-Legendre points for the form factors per patch of the full
+    /// length; shorter patches may take fewer
+    /// ([`Patches::points`](crate::transport::Patches::points)).
     pub quad: usize,
     /// Relative residual the solver must reach.
     pub tolerance: f64,
