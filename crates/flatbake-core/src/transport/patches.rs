@@ -18,10 +18,11 @@ pub struct Patches {
     pub step: Vec<f64>,
     /// Edge of each patch.
     pub edge: Vec<u32>,
-    /// Per edge: the longest patch its rules allowed (the patch length, or
-    /// less where its clearance is narrow). The form factors' quadrature
-    /// points are spaced by it ([`Patches::points`]).
-    pub longest: Vec<f64>,
+    /// Per edge: the length over which a preset's quadrature points are
+    /// spread ([`Patches::points`]): the patch length, or the edge's own
+    /// patch length where those keep every point (shortened by the
+    /// clearance rule, or meeting a concave corner).
+    pub spread: Vec<f64>,
 }
 
 impl Patches {
@@ -43,11 +44,11 @@ impl Patches {
         let mut first = Vec::with_capacity(geometry.edges.len() + 1);
         let mut step = Vec::with_capacity(geometry.edges.len());
         let mut edge = Vec::new();
-        let mut longest_of = Vec::with_capacity(geometry.edges.len());
+        let mut spread = Vec::with_capacity(geometry.edges.len());
         first.push(0);
         for (i, e) in geometry.edges.iter().enumerate() {
             let len = e.len();
-            let (n, longest) = if keep(i) {
+            let (n, over) = if keep(i) {
                 let longest = match per_clearance {
                     // Clearances past patch_len / k cannot shorten a patch.
                     Some(k) if k < patch_len => {
@@ -61,12 +62,12 @@ impl Patches {
                 // corner, keep every point: the light they exchange with
                 // walls a pixel or two away varies steeply along them.
                 let keeps_all = longest < patch_len || concave_end(geometry, e);
-                (n, if keeps_all { len / n as f64 } else { longest })
+                (n, if keeps_all { len / n as f64 } else { patch_len })
             } else {
                 (0, patch_len)
             };
             step.push(len / n as f64);
-            longest_of.push(longest);
+            spread.push(over);
             edge.extend(std::iter::repeat_n(i as u32, n));
             first.push(edge.len() as u32);
         }
@@ -74,21 +75,21 @@ impl Patches {
             first,
             step,
             edge,
-            longest: longest_of,
+            spread,
         }
     }
 
     /// How many of a preset's `q` quadrature points patch `p` takes: as
-    /// many as keep them no farther apart than on a patch of its edge's
-    /// longest length, `ceil(q L_p / longest)`, at least 1 and at most `q`.
-    /// A one-pixel face in the open (a pillar's, a dot's) is a patch a
-    /// quarter of `normal`'s length and takes one point; a patch that its
-    /// clearance shortened keeps all `q`.
+    /// many as keep them no farther apart than `q` points on the edge's
+    /// [`Patches::spread`], `ceil(q L_p / spread)`, at least 1 and at most
+    /// `q`. A one-pixel face of a pillar in the open is a patch a quarter
+    /// of `normal`'s length and takes one point; a patch that its
+    /// clearance shortened, or that meets a concave corner, keeps all `q`.
     pub fn points(&self, p: usize, q: usize) -> usize {
         let e = self.edge[p] as usize;
-        // The relative slack keeps a patch of the longest length, cut
-        // with rounding, at `q`.
-        let share = self.step[e] / self.longest[e] * (1.0 - 1e-9);
+        // The relative slack keeps a patch as long as the spread, cut with
+        // rounding, at `q`.
+        let share = self.step[e] / self.spread[e] * (1.0 - 1e-9);
         ((q as f64 * share).ceil() as usize).clamp(1, q)
     }
 
