@@ -197,12 +197,7 @@ fn patches_are_no_longer_than_a_multiple_of_their_clearance() {
     rows.push("#".repeat(18));
     let level = ascii(&refs(&rows), &[('#', wall(0.5))]);
     let g = trace(&level);
-    let find = |normal: Normal, line: f64, len: f64| {
-        g.edges
-            .iter()
-            .position(|e| e.normal == normal && e.line() == line && e.len() == len)
-            .unwrap_or_else(|| panic!("an edge {normal:?} at {line}, {len} long"))
-    };
+    let find = |normal: Normal, line: f64, len: f64| find_edge(&g, normal, line, len);
     // The pocket's roof sees down through the pocket and the room (14 px);
     // its left side sees across the pocket (4 px); the room's left wall
     // across the room (16 px); the stub of top wall left of the pocket down
@@ -267,12 +262,7 @@ fn patches_take_quadrature_points_by_length() {
     rows.push("#".repeat(18));
     let level = ascii(&refs(&rows), &[('#', wall(0.5))]);
     let g = trace(&level);
-    let find = |normal: Normal, line: f64, len: f64| {
-        g.edges
-            .iter()
-            .position(|e| e.normal == normal && e.line() == line && e.len() == len)
-            .unwrap_or_else(|| panic!("an edge {normal:?} at {line}, {len} long"))
-    };
+    let find = |normal: Normal, line: f64, len: f64| find_edge(&g, normal, line, len);
     let knobs = Quality::Normal.knobs();
     let (h, q) = (knobs.patch_len, knobs.quad);
     let p = Patches::new_where(&g, h, knobs.per_clearance, |_| true);
@@ -311,6 +301,19 @@ fn patches_take_quadrature_points_by_length() {
     // Without the clearance rule, a 4 px corridor wall is one full patch.
     let p = Patches::new(&g, h);
     assert!(p.of_edge(corridor).all(|i| p.points(i, q) == q));
+}
+
+/// The edge of `g` with this normal, line and length.
+fn find_edge(
+    g: &flatbake_core::geometry::Geometry,
+    normal: flatbake_core::geometry::Normal,
+    line: f64,
+    len: f64,
+) -> usize {
+    g.edges
+        .iter()
+        .position(|e| e.normal == normal && e.line() == line && e.len() == len)
+        .unwrap_or_else(|| panic!("an edge {normal:?} at {line}, {len} long"))
 }
 
 fn find_in(
