@@ -13,6 +13,12 @@
 //! and look at the new images before committing them. On a mismatch a diff
 //! image (the absolute difference, amplified 16x) is written to
 //! `target/reference-diff/NAME.diff.png`.
+//!
+//! Blessing records the flatbake version in `tests/reference/VERSION`,
+//! and refuses to change an existing reference's pixels under the version
+//! that blessed it: batch stamps and relight caches are keyed by the
+//! version, so lightmaps that change without it would be reported up to
+//! date with the old light. Bump the workspace version first.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -72,12 +78,31 @@ fn sample_levels_match_their_reference_lightmaps() {
         assert!(levels.iter().any(|l| l == editor), "{editor} is a sample");
     }
 
+    if bless {
+        let version = env!("CARGO_PKG_VERSION");
+        let record = refs.join("VERSION");
+        let blessed_at = std::fs::read_to_string(&record).unwrap_or_default();
+        let changed: Vec<&String> = levels
+            .iter()
+            .filter(|name| {
+                let want = refs.join(format!("{name}.lightmap.png"));
+                want.exists()
+                    && load16(&want) != load16(&out.path().join(format!("{name}.lightmap.png")))
+            })
+            .collect();
+        assert!(
+            changed.is_empty() || blessed_at.trim() != version,
+            "the lightmaps of {changed:?} changed under version {version}, which blessed them: \
+             bump the workspace version (batch stamps and relight caches are keyed by it) and bless again"
+        );
+        std::fs::create_dir_all(&refs).expect("create tests/reference");
+        std::fs::write(&record, format!("{version}\n")).expect("record the version");
+    }
     let mut failures = Vec::new();
     for name in &levels {
         let got_path = out.path().join(format!("{name}.lightmap.png"));
         let want_path = refs.join(format!("{name}.lightmap.png"));
         if bless {
-            std::fs::create_dir_all(&refs).expect("create tests/reference");
             std::fs::copy(&got_path, &want_path).expect("copy reference");
             continue;
         }
