@@ -286,7 +286,8 @@ fn patches_take_quadrature_points_by_length() {
     // The notch's floor meets the right wall in a concave corner: every
     // point, though it is one pixel long and open in front.
     assert_eq!(points(find(Normal::Down, 3.0, 1.0)), [q]);
-    // Unshortened 4 px patches of the long walls: every point.
+    // The top wall, 15 px: patches of 3.75 px (and concave corners at both
+    // ends): every point.
     assert!(
         points(find(Normal::Down, 1.0, 15.0))
             .iter()
