@@ -460,6 +460,10 @@ impl Lists {
                             }
                         }
                     }
+                    // In edge order, a pillar's edges are neighbours, and
+                    // so are its pieces in a sweep (where two that meet at
+                    // its corner are taken as one silhouette).
+                    b.list.sort_unstable();
                     let mut tally = [0u64; 3];
                     let mut acc = vec![0.0; k];
                     let mut m = vec![0.0; km];

@@ -78,12 +78,21 @@ pub struct Span {
 }
 
 /// A front-facing edge (or the part of it on one side of the cut ray) as
-/// seen from the query point.
+/// seen from the query point; or, in a sweep, a silhouette: two unwanted
+/// pieces that meet at a convex corner, taken as one
+/// ([`Sweeper::silhouette`]).
 #[derive(Clone, Copy, Debug)]
 struct Piece {
     edge: u32,
+    /// A silhouette's second edge (the one at `kb`); else `edge`.
+    edge_b: u32,
     /// In local coordinates the piece lies on `u = c` (if `u_const`) or `v = c`.
     u_const: bool,
+    /// A silhouette: the straight segment from `va` to `vb` across the
+    /// solid behind the corner its two pieces meet at. Then `c` is that
+    /// corner's pseudo-angle, and `(sa, sb)` is not the piece's extent on
+    /// an edge but its line, `sa u + sb v = 1` in local coordinates.
+    silhouette: bool,
     c: f64,
     /// Pseudo-angles of its ends (`ka < kb`), their axis coordinates on the
     /// edge and their global positions.
@@ -94,15 +103,19 @@ struct Piece {
     va: [f64; 2],
     vb: [f64; 2],
     /// Its spans are wanted (see [`Wanted`]); when not, `dim` says that its
-    /// edge has light, only too far away to matter here.
+    /// edge has light, only too far away to matter here (for a silhouette,
+    /// the edge of its first piece, and `dim_b` that of its second).
     lit: bool,
     dim: bool,
+    dim_b: bool,
 }
 
 impl Piece {
-    /// Ray parameter of the piece's line along local direction `(du, dv)`.
+    /// Ray parameter of the piece's line along local direction `(du, dv)`
+    /// (a piece of one edge: only sweeps make silhouettes).
     #[inline]
     fn t(&self, du: f64, dv: f64) -> f64 {
+        debug_assert!(!self.silhouette, "walks take edges one by one");
         if self.u_const {
             self.c / du
         } else {
@@ -113,9 +126,15 @@ impl Piece {
     /// [`Piece::t`] times a positive factor that depends on the ray only:
     /// `|c| su` for a piece on `u = c`, `|c| sv` else. With `(su, sv) =
     /// (|dv|, |du|)` that is `t |du| |dv|` (for a ray that hits the piece in
-    /// front, `c` has the sign of `du`, or of `dv`).
+    /// front, `c` has the sign of `du`, or of `dv`); with `(1 / |du|, 1 /
+    /// |dv|)`, for a ray along an axis, it is `t`. A silhouette's `t` is
+    /// scaled the same way (`axis`: the ray is along an axis).
     #[inline]
-    fn t_scaled(&self, su: f64, sv: f64) -> f64 {
+    fn t_scaled(&self, su: f64, sv: f64, (du, dv): (f64, f64), axis: bool) -> f64 {
+        if self.silhouette {
+            let t = 1.0 / (self.sa * du + self.sb * dv);
+            return if axis { t } else { t * (du.abs() * dv.abs()) };
+        }
         self.c.abs() * if self.u_const { su } else { sv }
     }
 
@@ -409,7 +428,9 @@ impl Query {
         };
         out.push(Piece {
             edge: ei,
+            edge_b: ei,
             u_const,
+            silhouette: false,
             c,
             ka,
             kb,
@@ -419,6 +440,7 @@ impl Query {
             vb,
             lit: true,
             dim: false,
+            dim_b: false,
         });
     }
 
@@ -648,11 +670,27 @@ pub struct Sweeper {
     /// The walk's open directions past [`FarWanted`]'s radius, merged and
     /// sorted.
     open: Vec<(f64, f64)>,
+    /// Sweeps take no silhouettes ([`Sweeper::set_silhouettes`]).
+    no_silhouettes: bool,
+    /// Silhouettes taken so far.
+    silhouettes: u64,
 }
 
 impl Sweeper {
     /// Empty buffers; they grow to what the queries need.
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// Whether sweeps take two unwanted pieces that meet at a pillar's
+    /// corner as one silhouette (they do unless told not to, which only
+    /// serves to check that the spans are the same either way).
+    pub fn set_silhouettes(&mut self, on: bool) {
+        self.no_silhouettes = !on;
+    }
+
+    /// How many silhouettes this sweeper's sweeps have taken.
+    pub fn silhouettes(&self) -> u64 {
+        self.silhouettes
     }
 }

@@ -47,14 +47,19 @@ impl Sweeper {
         if self.pieces.is_empty() {
             return 0;
         }
+        if !self.no_silhouettes {
+            self.merge_silhouettes(edges, &q);
+        }
         let mut left_out = 0;
         self.shape.clear();
         for (id, pc) in self.pieces.iter().enumerate() {
             let part = u32::from(id > 0 && self.pieces[id - 1].edge == pc.edge);
             let base = pc.edge * 4 + part * 2;
+            // A silhouette's end is its second edge's (never split).
+            let end = if pc.silhouette { pc.edge_b * 4 } else { base };
             self.events.push(Event::new(pc.ka, base + 1, 2 * id as u32));
-            self.events.push(Event::new(pc.kb, base, 2 * id as u32 + 1));
-            self.shape.push(base);
+            self.events.push(Event::new(pc.kb, end, 2 * id as u32 + 1));
+            self.shape.push(base | (u32::from(pc.silhouette) << 31));
         }
         let same = self.shape == self.prev_shape;
         std::mem::swap(&mut self.shape, &mut self.prev_shape);
@@ -69,6 +74,10 @@ impl Sweeper {
         self.at.resize(self.pieces.len(), u32::MAX);
         // Nearest piece of the previous interval.
         let mut current: Option<u32> = None;
+        // While a silhouette is nearest from before its corner on: that
+        // its second piece is still to be counted where it becomes
+        // nearest, past the corner (see below).
+        let mut before_corner = false;
         while i < n {
             let key = self.events[i].key();
             let vertex = {
@@ -113,7 +122,8 @@ impl Sweeper {
                 // Compared along one ray, so any positive multiple of the
                 // ray parameter will do: `t |du| |dv|` needs no division.
                 // An axis-parallel ray keeps the plain parameter.
-                let (su, sv) = if du == 0.0 || dv == 0.0 {
+                let axis = du == 0.0 || dv == 0.0;
+                let (su, sv) = if axis {
                     (1.0 / du.abs(), 1.0 / dv.abs())
                 } else {
                     (dv.abs(), du.abs())
@@ -121,7 +131,7 @@ impl Sweeper {
                 let mut best = u32::MAX;
                 let mut best_t = f64::INFINITY;
                 let mut consider = |a: u32| {
-                    let t = self.pieces[a as usize].t_scaled(su, sv);
+                    let t = self.pieces[a as usize].t_scaled(su, sv, (du, dv), axis);
                     if t < best_t || (t == best_t && a < best) {
                         best_t = t;
                         best = a;
@@ -146,8 +156,23 @@ impl Sweeper {
             // only hides what is behind it).
             let shown = match nearest {
                 Some(pc) if !self.pieces[pc as usize].lit => {
-                    if current != nearest && self.pieces[pc as usize].dim {
-                        left_out += 1;
+                    let piece = &self.pieces[pc as usize];
+                    // A silhouette counts as its two pieces would: each
+                    // where it becomes nearest, the second past the
+                    // corner (`c`), on the interval to the next event.
+                    let corner = piece.c;
+                    if current != nearest {
+                        before_corner = piece.silhouette && key < corner;
+                        let dim = if piece.silhouette && !before_corner {
+                            piece.dim_b
+                        } else {
+                            piece.dim
+                        };
+                        left_out += u64::from(dim);
+                    }
+                    if before_corner && self.events[i].key() > corner {
+                        before_corner = false;
+                        left_out += u64::from(piece.dim_b);
                     }
                     None
                 }
@@ -165,6 +190,41 @@ impl Sweeper {
         }
         debug_assert!(open.is_none(), "the last event closes every span");
         left_out
+    }
+
+    /// Takes every two neighbouring `pieces` that [`Sweeper::silhouette`]
+    /// finds meeting at a convex corner as one. A field of one-pixel
+    /// pillars, seen from a pixel, is two unwanted pieces per pillar, most
+    /// of them only hiding what is behind them; the sweep then sorts half
+    /// as many events. The candidates list a pillar's edges together
+    /// (their loop's), so its two pieces are neighbours in `pieces`.
+    fn merge_silhouettes(&mut self, edges: &[Edge], q: &Query) {
+        let n = self.pieces.len();
+        let (mut r, mut w) = (0, 0);
+        // The edge of the piece before `r` (pieces of a split edge are
+        // left alone: their events' ids count on their order).
+        let mut before = u32::MAX;
+        while r < n {
+            let a = self.pieces[r];
+            let next_split = r + 2 < n && self.pieces[r + 2].edge == self.pieces[r + 1].edge;
+            let merged = if r + 1 < n && before != a.edge && !next_split {
+                silhouette(edges, q, &a, &self.pieces[r + 1])
+            } else {
+                None
+            };
+            before = a.edge;
+            if let Some(m) = merged {
+                self.silhouettes += 1;
+                before = self.pieces[r + 1].edge;
+                self.pieces[w] = m;
+                r += 2;
+            } else {
+                self.pieces[w] = a;
+                r += 1;
+            }
+            w += 1;
+        }
+        self.pieces.truncate(w);
     }
 
     /// Marks the `pieces` of one edge as wanted or not (`(lit, dim)`, see
@@ -292,6 +352,61 @@ impl Sweeper {
             keys.extend_from_slice(&self.events);
         }
     }
+}
+
+/// Two unwanted pieces `a` and `b` as one silhouette, if they meet end to
+/// end (the same vertex at the same pseudo-angle) at a convex corner of
+/// solid, and one of their edges is at most one pixel long. Nothing lies
+/// between the two pieces and the straight segment across their far ends:
+/// that triangle is at most a pixel deep behind the longer edge, and every
+/// edge has solid for a pixel behind it. So the segment hides from the
+/// query point exactly what the two pieces hide.
+fn silhouette(edges: &[Edge], q: &Query, a: &Piece, b: &Piece) -> Option<Piece> {
+    if a.lit || b.lit || a.edge == b.edge || a.silhouette || b.silhouette {
+        return None;
+    }
+    let (f, s) = if a.kb == b.ka && a.vb == b.va {
+        (a, b)
+    } else if b.kb == a.ka && b.vb == a.va {
+        (b, a)
+    } else {
+        return None;
+    };
+    let (ef, es) = (&edges[f.edge as usize], &edges[s.edge as usize]);
+    if ef.len() > 1.0 && es.len() > 1.0 {
+        return None;
+    }
+    // Convex: the second piece runs from the corner to the solid side of
+    // the first's edge.
+    let n = ef.normal.vec();
+    let (corner, far) = (f.vb, s.vb);
+    if (far[0] - corner[0]) * n[0] as f64 + (far[1] - corner[1]) * n[1] as f64 >= 0.0 {
+        return None;
+    }
+    // The line through the far ends, `nu u + nv v = c`, scaled to `c = 1`
+    // (the query point is not on it: the ends are at different angles).
+    let ((au, av), (cu, cv)) = (q.local(f.va), q.local(far));
+    let (nu, nv) = (cv - av, au - cu);
+    let c = nu * au + nv * av;
+    if c == 0.0 || !c.is_finite() {
+        return None;
+    }
+    Some(Piece {
+        edge: f.edge,
+        edge_b: s.edge,
+        u_const: false,
+        silhouette: true,
+        c: f.kb,
+        ka: f.ka,
+        kb: s.kb,
+        sa: nu / c,
+        sb: nv / c,
+        va: f.va,
+        vb: far,
+        lit: false,
+        dim: f.dim,
+        dim_b: s.dim,
+    })
 }
 
 /// Sorts `keys` by insertion: linear in their number plus the number of
