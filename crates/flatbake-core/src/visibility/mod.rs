@@ -127,14 +127,11 @@ impl Piece {
     /// `|c| su` for a piece on `u = c`, `|c| sv` else. With `(su, sv) =
     /// (|dv|, |du|)` that is `t |du| |dv|` (for a ray that hits the piece in
     /// front, `c` has the sign of `du`, or of `dv`); with `(1 / |du|, 1 /
-    /// |dv|)`, for a ray along an axis, it is `t`. A silhouette's `t` is
-    /// scaled the same way (`axis`: the ray is along an axis).
+    /// |dv|)`, for a ray along an axis, it is `t`. (Not for a silhouette:
+    /// the sweep scales its `t` the same way itself.)
     #[inline]
-    fn t_scaled(&self, su: f64, sv: f64, (du, dv): (f64, f64), axis: bool) -> f64 {
-        if self.silhouette {
-            let t = 1.0 / (self.sa * du + self.sb * dv);
-            return if axis { t } else { t * (du.abs() * dv.abs()) };
-        }
+    fn t_scaled(&self, su: f64, sv: f64) -> f64 {
+        debug_assert!(!self.silhouette, "a silhouette's line is not on an axis");
         self.c.abs() * if self.u_const { su } else { sv }
     }
 

@@ -130,8 +130,22 @@ impl Sweeper {
                 };
                 let mut best = u32::MAX;
                 let mut best_t = f64::INFINITY;
+                let scale = if axis { 1.0 } else { du.abs() * dv.abs() };
                 let mut consider = |a: u32| {
-                    let t = self.pieces[a as usize].t_scaled(su, sv, (du, dv), axis);
+                    let pc = &self.pieces[a as usize];
+                    let t = if pc.silhouette {
+                        // `t = scale / den`, `den > 0` for a ray that
+                        // hits the segment in front: divided only where
+                        // it may be nearer.
+                        let den = pc.sa * du + pc.sb * dv;
+                        let bound = best_t * den;
+                        if bound.is_nan() || scale > bound {
+                            return;
+                        }
+                        scale / den
+                    } else {
+                        pc.t_scaled(su, sv)
+                    };
                     if t < best_t || (t == best_t && a < best) {
                         best_t = t;
                         best = a;
@@ -309,8 +323,12 @@ impl Sweeper {
             self.bucket_of.push(b as u32);
             start[b + 1] += 1;
         }
-        for b in 0..nb {
-            start[b + 1] += start[b];
+        // Running sums in a register: `start[b + 1] += start[b]` would
+        // wait on the store of the sum before.
+        let mut sum = 0;
+        for s in start.iter_mut() {
+            sum += *s;
+            *s = sum;
         }
         let keys = &mut self.sorted;
         keys.clear();
