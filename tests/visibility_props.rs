@@ -813,8 +813,9 @@ fn mixed_reaches(edges: usize, seed: u64) -> Vec<f64> {
 /// A sweep gives the same spans, and counts the same spans of edges with
 /// light as left out, whether it takes two unwanted pieces that meet at a
 /// pillar's corner as one silhouette or not: from `points`, over every
-/// edge of `g`, with reaches `reach2`. Returns how many silhouettes it
-/// took.
+/// edge of `g`, with reaches `reach2`; and so does a walk, which takes two
+/// such pieces as one whether wanted or not and reads the silhouette's
+/// spans off as its two pieces'. Returns how many silhouettes they took.
 ///
 /// The same up to rounding ([`assert_same_spans`]): where several vertices
 /// lie on one ray from the point, a span that ends on that ray is cut
@@ -828,6 +829,7 @@ fn silhouettes_change_nothing(g: &Geometry, points: &[Viewpoint], reach2: &[f64]
         class: None,
         cosine: None,
     });
+    let blocks = Blocks::new(g);
     let (mut with, mut without) = (Sweeper::new(), Sweeper::new());
     without.set_silhouettes(false);
     for &at in points {
@@ -836,6 +838,12 @@ fn silhouettes_change_nothing(g: &Geometry, points: &[Viewpoint], reach2: &[f64]
         let dim_b = without.sweep_wanted(&g.edges, &all, at, wanted, &mut b);
         assert_same_spans(&a, &b, at.p);
         assert_eq!(dim_a, dim_b, "left out, point {:?}", at.p);
+        let (mut a, mut b): (Vec<Span>, Vec<Span>) = (vec![], vec![]);
+        let inf = f64::INFINITY;
+        let dim_a = with.walk_wanted(&blocks, at, inf, &[], wanted, None, &mut a);
+        let dim_b = without.walk_wanted(&blocks, at, inf, &[], wanted, None, &mut b);
+        assert_same_spans(&a, &b, at.p);
+        assert_eq!(dim_a, dim_b, "left out by the walk, point {:?}", at.p);
     }
     assert_eq!(without.silhouettes(), 0);
     with.silhouettes()

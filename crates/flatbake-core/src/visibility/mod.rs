@@ -91,7 +91,8 @@ struct Piece {
     /// A silhouette: the straight segment from `va` to `vb` across the
     /// solid behind the corner its two pieces meet at. Then `c` is that
     /// corner's pseudo-angle, and `(sa, sb)` is not the piece's extent on
-    /// an edge but its line, `sa u + sb v = 1` in local coordinates.
+    /// an edge but its line, `sa u + sb v = 1` in local coordinates. In a
+    /// walk, its two pieces are the two before it, in order.
     silhouette: bool,
     c: f64,
     /// Pseudo-angles of its ends (`ka < kb`), their axis coordinates on the
@@ -111,11 +112,12 @@ struct Piece {
 }
 
 impl Piece {
-    /// Ray parameter of the piece's line along local direction `(du, dv)`
-    /// (a piece of one edge: only sweeps make silhouettes).
+    /// Ray parameter of the piece's line along local direction `(du, dv)`.
     #[inline]
     fn t(&self, du: f64, dv: f64) -> f64 {
-        debug_assert!(!self.silhouette, "walks take edges one by one");
+        if self.silhouette {
+            return 1.0 / (self.sa * du + self.sb * dv);
+        }
         if self.u_const {
             self.c / du
         } else {

@@ -222,7 +222,11 @@ impl Sweeper {
             let a = self.pieces[r];
             let next_split = r + 2 < n && self.pieces[r + 2].edge == self.pieces[r + 1].edge;
             let merged = if r + 1 < n && before != a.edge && !next_split {
-                silhouette(edges, q, &a, &self.pieces[r + 1])
+                let b = &self.pieces[r + 1];
+                (!a.lit && !b.lit)
+                    .then(|| silhouette(edges, q, &a, b))
+                    .flatten()
+                    .map(|(m, _)| m)
             } else {
                 None
             };
@@ -372,15 +376,16 @@ impl Sweeper {
     }
 }
 
-/// Two unwanted pieces `a` and `b` as one silhouette, if they meet end to
-/// end (the same vertex at the same pseudo-angle) at a convex corner of
-/// solid, and one of their edges is at most one pixel long. Nothing lies
-/// between the two pieces and the straight segment across their far ends:
-/// that triangle is at most a pixel deep behind the longer edge, and every
-/// edge has solid for a pixel behind it. So the segment hides from the
-/// query point exactly what the two pieces hide.
-fn silhouette(edges: &[Edge], q: &Query, a: &Piece, b: &Piece) -> Option<Piece> {
-    if a.lit || b.lit || a.edge == b.edge || a.silhouette || b.silhouette {
+/// Pieces `a` and `b` as one silhouette, if they meet end to end (the
+/// same vertex at the same pseudo-angle) at a convex corner of solid, and
+/// one of their edges is at most one pixel long; and whether `b` comes
+/// first (at `ka`). Nothing lies between the two pieces and the straight
+/// segment across their far ends: that triangle is at most a pixel deep
+/// behind the longer edge, and every edge has solid for a pixel behind
+/// it. So the segment hides from the query point exactly what the two
+/// pieces hide.
+pub(super) fn silhouette(edges: &[Edge], q: &Query, a: &Piece, b: &Piece) -> Option<(Piece, bool)> {
+    if a.edge == b.edge || a.silhouette || b.silhouette {
         return None;
     }
     let (f, s) = if a.kb == b.ka && a.vb == b.va {
@@ -409,7 +414,7 @@ fn silhouette(edges: &[Edge], q: &Query, a: &Piece, b: &Piece) -> Option<Piece> 
     if c == 0.0 || !c.is_finite() {
         return None;
     }
-    Some(Piece {
+    let piece = Piece {
         edge: f.edge,
         edge_b: s.edge,
         u_const: false,
@@ -424,7 +429,8 @@ fn silhouette(edges: &[Edge], q: &Query, a: &Piece, b: &Piece) -> Option<Piece> 
         lit: false,
         dim: f.dim,
         dim_b: s.dim,
-    })
+    };
+    Some((piece, std::ptr::eq(f, b)))
 }
 
 /// Sorts `keys` by insertion: linear in their number plus the number of

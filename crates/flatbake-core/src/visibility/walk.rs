@@ -3,6 +3,7 @@
 
 use std::sync::OnceLock;
 
+use super::sweep::silhouette;
 use super::*;
 
 /// How an axis-aligned box lies as seen from a query.
@@ -264,7 +265,17 @@ impl Coverage {
                 f64::INFINITY
             } else {
                 let p = &pieces[o as usize];
-                p.distance_at(k0).max(p.distance_at(k1))
+                // A silhouette's own pieces are its surface (nearer than
+                // its segment), and nearest at their corner.
+                let at = |k: f64| {
+                    if p.silhouette {
+                        let face = o as usize - if k <= p.c { 2 } else { 1 };
+                        pieces[face].distance_at(k)
+                    } else {
+                        p.distance_at(k)
+                    }
+                };
+                at(k0).max(at(k1))
             }
         };
         let mut a = i;
@@ -880,9 +891,11 @@ impl Sweeper {
             }
             if level == 0 {
                 let b = y as usize * nx + x as usize;
-                for &ei in &blocks.list[blocks.start[b]..blocks.start[b + 1]] {
-                    self.insert_edge(&q, edges, ei);
-                }
+                self.insert_block(
+                    &q,
+                    edges,
+                    &blocks.list[blocks.start[b]..blocks.start[b + 1]],
+                );
                 continue;
             }
             // Children, nearest popped first.
@@ -907,20 +920,25 @@ impl Sweeper {
                 self.stack.push((level - 1, cx, cy));
             }
         }
-        // Read the spans off the buffer (intervals of one owner are merged).
+        // Read the spans off the buffer (intervals of one owner are merged;
+        // a silhouette's, cut at its corner, are its two pieces').
         let cover = &self.cover;
         let mut left_out = 0;
+        let mut read = |piece: u32, from: (f64, [f64; 2]), to: (f64, [f64; 2])| {
+            let pc = &self.pieces[piece as usize];
+            let (lit, dim) = wanted.map_or((pc.lit, pc.dim), |w| w.at(edges, pc.edge, None, &q));
+            if lit {
+                self.emit(edges, p, piece, from, to, out);
+            } else {
+                left_out += u64::from(dim);
+            }
+        };
         for i in 0..cover.iv.len() {
             let o = cover.iv[i].owner;
             if o == NONE {
                 continue;
             }
             let pc = &self.pieces[o as usize];
-            let (lit, dim) = wanted.map_or((pc.lit, pc.dim), |w| w.at(edges, pc.edge, None, &q));
-            if !lit {
-                left_out += u64::from(dim);
-                continue;
-            }
             let (k0, k1) = (cover.start(i), cover.iv[i].end);
             let v0 = if i == 0 {
                 pc.va
@@ -928,9 +946,70 @@ impl Sweeper {
                 vertex(&self.pieces, cover.iv[i - 1].vend)
             };
             let v1 = vertex(&self.pieces, cover.iv[i].vend);
-            self.emit(edges, p, o, (k0, v0), (k1, v1), out);
+            if !pc.silhouette {
+                read(o, (k0, v0), (k1, v1));
+                continue;
+            }
+            let (corner, at) = (pc.c, self.pieces[o as usize - 2].vb);
+            if k0 < corner {
+                let to = if k1 <= corner { (k1, v1) } else { (corner, at) };
+                read(o - 2, (k0, v0), to);
+            }
+            if k1 > corner {
+                let from = if k0 >= corner { (k0, v0) } else { (corner, at) };
+                read(o - 1, from, (k1, v1));
+            }
         }
         left_out
+    }
+
+    /// Adds the visible pieces of a block's edges `list` to the coverage
+    /// (each edge once per walk), taking two pieces that meet at a
+    /// pillar's corner as one silhouette ([`silhouette`]), as sweeps do:
+    /// the block lists a pillar's edges one after the other. A piece that
+    /// is an edge's only one waits for the next edge's before it is
+    /// inserted.
+    fn insert_block(&mut self, q: &Query, edges: &[Edge], list: &[u32]) {
+        let mut waiting: Option<usize> = None;
+        for &ei in list {
+            if !self.inserted.insert(ei as usize) {
+                continue;
+            }
+            let from = self.pieces.len();
+            q.pieces(edges, ei, &mut self.pieces);
+            if self.pieces.len() == from {
+                // Facing away (a pillar's other edges, between the two
+                // that face the point).
+                continue;
+            }
+            let single = self.pieces.len() == from + 1 && !self.no_silhouettes;
+            if let Some(w) = waiting.take() {
+                let pair = single
+                    .then(|| silhouette(edges, q, &self.pieces[w], &self.pieces[from]))
+                    .flatten();
+                if let Some((m, swapped)) = pair {
+                    // The two pieces before the silhouette, in order.
+                    if swapped {
+                        self.pieces.swap(w, from);
+                    }
+                    self.silhouettes += 1;
+                    self.pieces.push(m);
+                    self.cover.insert(&self.pieces, from as u32 + 1, q.p);
+                    continue;
+                }
+                self.cover.insert(&self.pieces, w as u32, q.p);
+            }
+            if single {
+                waiting = Some(from);
+                continue;
+            }
+            for pi in from..self.pieces.len() {
+                self.cover.insert(&self.pieces, pi as u32, q.p);
+            }
+        }
+        if let Some(w) = waiting {
+            self.cover.insert(&self.pieces, w as u32, q.p);
+        }
     }
 
     pub(super) fn emit(
