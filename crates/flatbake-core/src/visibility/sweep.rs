@@ -35,20 +35,24 @@ impl Sweeper {
         let p = at.p;
         self.pieces.clear();
         self.events.clear();
+        // The last piece is its edge's only one (not a silhouette).
+        let mut single = false;
         for (j, &ei) in candidates.iter().enumerate() {
             let from = self.pieces.len();
             q.pieces(edges, ei, &mut self.pieces);
-            if let Some(w) = wanted
-                && self.pieces.len() > from
-            {
-                Self::mark(&mut self.pieces[from..], w.at(edges, ei, Some(j), &q));
+            let Some(w) = wanted else { continue };
+            if self.pieces.len() == from {
+                continue;
             }
+            Self::mark(&mut self.pieces[from..], w.at(edges, ei, Some(j), &q));
+            if self.pieces.len() == from + 1 && single && self.take_silhouette(edges, &q) {
+                single = false;
+                continue;
+            }
+            single = self.pieces.len() == from + 1;
         }
         if self.pieces.is_empty() {
             return 0;
-        }
-        if !self.no_silhouettes {
-            self.merge_silhouettes(edges, &q);
         }
         let mut left_out = 0;
         self.shape.clear();
@@ -206,43 +210,27 @@ impl Sweeper {
         left_out
     }
 
-    /// Takes every two neighbouring `pieces` that [`Sweeper::silhouette`]
-    /// finds meeting at a convex corner as one. A field of one-pixel
-    /// pillars, seen from a pixel, is two unwanted pieces per pillar, most
-    /// of them only hiding what is behind them; the sweep then sorts half
-    /// as many events. The candidates list a pillar's edges together
-    /// (their loop's), so its two pieces are neighbours in `pieces`.
-    fn merge_silhouettes(&mut self, edges: &[Edge], q: &Query) {
+    /// Takes the last two `pieces`, each its edge's only one, as one
+    /// [`silhouette`] if neither is wanted and they meet at a convex
+    /// corner; returns whether it did. A field of one-pixel pillars, seen
+    /// from a pixel, is two unwanted pieces per pillar, most of them only
+    /// hiding what is behind them; the sweep then sorts half as many
+    /// events. The candidates list a pillar's edges together (their
+    /// loop's), so its two pieces come one after the other.
+    #[inline]
+    fn take_silhouette(&mut self, edges: &[Edge], q: &Query) -> bool {
         let n = self.pieces.len();
-        let (mut r, mut w) = (0, 0);
-        // The edge of the piece before `r` (pieces of a split edge are
-        // left alone: their events' ids count on their order).
-        let mut before = u32::MAX;
-        while r < n {
-            let a = self.pieces[r];
-            let next_split = r + 2 < n && self.pieces[r + 2].edge == self.pieces[r + 1].edge;
-            let merged = if r + 1 < n && before != a.edge && !next_split {
-                let b = &self.pieces[r + 1];
-                (!a.lit && !b.lit)
-                    .then(|| silhouette(edges, q, &a, b))
-                    .flatten()
-                    .map(|(m, _)| m)
-            } else {
-                None
-            };
-            before = a.edge;
-            if let Some(m) = merged {
-                self.silhouettes += 1;
-                before = self.pieces[r + 1].edge;
-                self.pieces[w] = m;
-                r += 2;
-            } else {
-                self.pieces[w] = a;
-                r += 1;
-            }
-            w += 1;
+        let (a, b) = (&self.pieces[n - 2], &self.pieces[n - 1]);
+        if a.lit || b.lit || self.no_silhouettes {
+            return false;
         }
-        self.pieces.truncate(w);
+        let Some((m, _)) = silhouette(edges, q, a, b) else {
+            return false;
+        };
+        self.pieces[n - 2] = m;
+        self.pieces.pop();
+        self.silhouettes += 1;
+        true
     }
 
     /// Marks the `pieces` of one edge as wanted or not (`(lit, dim)`, see
