@@ -78,9 +78,8 @@ pub struct Span {
 }
 
 /// A front-facing edge (or the part of it on one side of the cut ray) as
-/// seen from the query point; or, in a sweep, a silhouette: two unwanted
-/// pieces that meet at a convex corner, taken as one
-/// ([`Sweeper::silhouette`]).
+/// seen from the query point; or a silhouette: two pieces that meet at a
+/// convex corner, taken as one (`silhouette` in sweep.rs).
 #[derive(Clone, Copy, Debug)]
 struct Piece {
     edge: u32,
@@ -669,7 +668,7 @@ pub struct Sweeper {
     /// The walk's open directions past [`FarWanted`]'s radius, merged and
     /// sorted.
     open: Vec<(f64, f64)>,
-    /// Sweeps take no silhouettes ([`Sweeper::set_silhouettes`]).
+    /// Sweeps and walks take no silhouettes ([`Sweeper::set_silhouettes`]).
     no_silhouettes: bool,
     /// Silhouettes taken so far.
     silhouettes: u64,
@@ -681,14 +680,14 @@ impl Sweeper {
         Self::default()
     }
 
-    /// Whether sweeps take two unwanted pieces that meet at a pillar's
+    /// Whether sweeps and walks take two pieces that meet at a pillar's
     /// corner as one silhouette (they do unless told not to, which only
     /// serves to check that the spans are the same either way).
     pub fn set_silhouettes(&mut self, on: bool) {
         self.no_silhouettes = !on;
     }
 
-    /// How many silhouettes this sweeper's sweeps have taken.
+    /// How many silhouettes this sweeper's sweeps and walks have taken.
     pub fn silhouettes(&self) -> u64 {
         self.silhouettes
     }

@@ -988,7 +988,9 @@ impl Sweeper {
                     .then(|| silhouette(edges, q, &self.pieces[w], &self.pieces[from]))
                     .flatten();
                 if let Some((m, swapped)) = pair {
-                    // The two pieces before the silhouette, in order.
+                    // The two pieces before the silhouette, in order
+                    // (nothing was cut in between: `w` is the last piece).
+                    debug_assert_eq!(w + 1, from);
                     if swapped {
                         self.pieces.swap(w, from);
                     }
