@@ -6,7 +6,7 @@
 mod common;
 use common::*;
 
-use flatbake_core::bake::{Baked, Settings, bake};
+use flatbake_core::bake::{Baked, Settings, bake, plan_channels};
 use flatbake_core::level::material::Material;
 use flatbake_core::level::{Cell, Level};
 use flatbake_core::quality::Quality;
@@ -79,6 +79,98 @@ fn grey_scene_is_solved_once_and_matches_three_solves() {
         assert!(full.report.skipped.is_empty(), "{:?}", full.report.skipped);
         assert_eq!(max_diff(&fast, &full), 0.0, "{q}: sharing a solve is exact");
     }
+}
+
+/// Largest difference over all pixels and channels, relative to the
+/// brightest value of `b`.
+fn rel_diff(a: &Baked, b: &Baked) -> f64 {
+    let top = b
+        .lightmap
+        .rgb
+        .iter()
+        .flat_map(|p| p.iter().map(|&v| v as f64))
+        .fold(0.0, f64::max);
+    max_diff(a, b) / top
+}
+
+#[test]
+fn one_light_colour_on_grey_walls_is_solved_once_and_scaled() {
+    // Two lamps of one colour at two brightnesses, grey walls: every
+    // channel's emission is one ratio of blue's (the brightest).
+    let rows = [
+        "##########LLLL##########",
+        "#......................#",
+        "#.......###............#",
+        "#.......###............M",
+        "#......................M",
+        "#..............#.......#",
+        "########################",
+    ];
+    let level = ascii(
+        &rows,
+        &[
+            ('#', wall(0.6)),
+            ('L', emitter([1.0, 2.0, 4.0])),
+            ('M', emitter([0.25, 0.5, 1.0])),
+        ],
+    );
+    let used = vec![true; level.materials.len()];
+    let plan = plan_channels(&level, &used);
+    assert_eq!(plan.classes, vec![2], "blue, the brightest, is solved");
+    assert_eq!(plan.scale, [0.25, 0.5, 1.0]);
+    for q in [Quality::Draft, Quality::Normal] {
+        let mut s = Settings::new(q);
+        s.knobs.lattice = None;
+        let fast = bake(&level, &s, &|_| {}).expect("bakes");
+        let full = run(&level, q, None, true);
+        assert_eq!(fast.report.solves, 1, "{q}");
+        assert!(
+            fast.report
+                .skipped
+                .iter()
+                .any(|s| s.effect == "channel solves" && s.reason.contains("scaled")),
+            "{:?}",
+            fast.report.skipped
+        );
+        // Two solves each within the solver's tolerance of the answer.
+        let d = rel_diff(&fast, &full);
+        assert!(
+            d <= 1e-5,
+            "{q}: scaling a solve is exact up to the solver: {d}"
+        );
+        let (ef, eu) = (fast.report.energy.emitted, full.report.energy.emitted);
+        assert!(
+            (ef - eu).abs() <= 1e-9 * eu,
+            "emitted power {ef} against {eu}"
+        );
+    }
+}
+
+#[test]
+fn lights_of_two_colours_take_a_solve_per_channel() {
+    // Each lamp alone would be one colour; together no channel is a
+    // multiple of another.
+    let rows = [
+        "##########LLLL##########",
+        "#......................#",
+        "#.......###............M",
+        "#......................M",
+        "########################",
+    ];
+    let level = ascii(
+        &rows,
+        &[
+            ('#', wall(0.6)),
+            ('L', emitter([2.0, 1.0, 1.0])),
+            ('M', emitter([1.0, 1.0, 2.0])),
+        ],
+    );
+    let b = run(&level, Quality::Normal, None, false);
+    assert_eq!(b.report.solves, 3);
+    assert_eq!(max_diff(&b, &run(&level, Quality::Normal, None, true)), 0.0);
+    // And one colour on coloured walls: a solve per channel too.
+    let level = room(coloured([0.7, 0.5, 0.3]), emitter([2.0, 1.0, 0.5]));
+    assert_eq!(run(&level, Quality::Normal, None, false).report.solves, 3);
 }
 
 #[test]

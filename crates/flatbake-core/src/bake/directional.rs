@@ -57,8 +57,9 @@ pub fn assemble(
         let m = &gathered.moments[i * 2 * kk..(i + 1) * 2 * kk];
         for c in 0..3 {
             if let Some(k) = plan.channels.class_of[c] {
-                d.cos[at][c] = finite(m[k]);
-                d.sin[at][c] = finite(m[kk + k]);
+                let scale = plan.channels.scale[c];
+                d.cos[at][c] = finite(m[k] * scale);
+                d.sin[at][c] = finite(m[kk + k] * scale);
             }
         }
     }

@@ -50,14 +50,17 @@ pub fn assemble(
         let px = &mut rgb[p[1] as usize * level.width + p[0] as usize];
         for c in 0..3 {
             if let Some(k) = plan.channels.class_of[c] {
-                px[c] = light_f32(gathered.values[i * kk + k]);
+                px[c] = light_f32(gathered.values[i * kk + k] * plan.channels.scale[c]);
             }
         }
     }
     let responses = responses(ctx, scene, plan, solved, gathered);
     // Solid pixels: mean radiosity of their exposed sides.
     let radiosity: [Vec<f64>; 3] = std::array::from_fn(|c| {
-        plan.channels.class_of[c].map_or_else(|| vec![0.0; np], |k| solved.class_b[k].clone())
+        plan.channels.class_of[c].map_or_else(
+            || vec![0.0; np],
+            |k| scaled(&solved.class_b[k], plan.channels.scale[c]),
+        )
     });
     solid_pixels(level, geometry, patches, &radiosity, &mut rgb);
     // With responses, the lightmap is their sum at the palette's emission, so
@@ -81,6 +84,15 @@ pub fn assemble(
         },
         responses,
         radiosity,
+    }
+}
+
+/// `b` times `k` (a copy of `b` where `k` is 1).
+pub(super) fn scaled(b: &[f64], k: f64) -> Vec<f64> {
+    if k == 1.0 {
+        b.to_vec()
+    } else {
+        b.iter().map(|v| v * k).collect()
     }
 }
 

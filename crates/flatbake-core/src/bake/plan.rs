@@ -90,14 +90,18 @@ impl Plan {
     }
 }
 
-/// Which channels need a solve, and which can copy another or be zero.
+/// Which channels need a solve, and which can scale another's or be zero.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ChannelPlan {
-    /// For each channel: `Some(k)` = uses the result of distinct class `k`;
-    /// `None` = no emission anywhere, the channel is dark.
+    /// For each channel: `Some(k)` = `scale[c]` times the result of
+    /// distinct class `k`; `None` = no emission anywhere, the channel is
+    /// dark.
     pub class_of: [Option<usize>; 3],
-    /// A representative channel per distinct class.
+    /// A representative channel per distinct class: its brightest channel.
     pub classes: Vec<usize>,
+    /// For each channel: the factor on its class's result (1 for the
+    /// representative and for channels equal to it; 0 for dark channels).
+    pub scale: [f64; 3],
 }
 
 impl ChannelPlan {
@@ -106,6 +110,7 @@ impl ChannelPlan {
         ChannelPlan {
             class_of: [Some(0), Some(1), Some(2)],
             classes: vec![0, 1, 2],
+            scale: [1.0; 3],
         }
     }
 
@@ -119,54 +124,104 @@ impl ChannelPlan {
                 );
             }
         }
+        let scaled = (0..3).any(|c| self.class_of[c].is_some() && self.scale[c] != 1.0);
         if self.classes.len() == 1 && self.class_of.iter().all(Option::is_some) {
-            log.skip("channel solves", "grey scene: 1 solve for 3 channels");
+            let reason = if scaled {
+                "one light colour, grey walls: 1 solve for 3 channels, scaled"
+            } else {
+                "grey scene: 1 solve for 3 channels"
+            };
+            log.skip("channel solves", reason);
             return;
         }
         for c in 0..3 {
             if let Some(k) = self.class_of[c]
                 && self.classes[k] != c
             {
+                let rep = CHANNEL[self.classes[k]];
                 log.skip(
                     format!("{} channel", CHANNEL[c]),
-                    format!(
-                        "same materials as {}: result shared",
-                        CHANNEL[self.classes[k]]
-                    ),
+                    if self.scale[c] == 1.0 {
+                        format!("same materials as {rep}: result shared")
+                    } else {
+                        format!(
+                            "same reflectance as {rep}, emission {} times it: result scaled",
+                            self.scale[c]
+                        )
+                    },
                 );
             }
         }
     }
 }
 
-/// Groups channels whose reflectance and emission are equal for every used
-/// material (a grey scene has one class), and drops channels with no emission.
+/// Groups channels whose reflectance is equal and whose emission is in one
+/// ratio for every used material (a grey scene has one class, and so has a
+/// scene of grey walls and lights of one colour), and drops channels with
+/// no emission. The light is linear in the emission, so a channel whose
+/// emission is `k` times its class's is `k` times its class's answer.
 pub fn plan_channels(level: &Level, used: &[bool]) -> ChannelPlan {
-    let mut class_of = [None; 3];
-    let mut classes: Vec<usize> = Vec::new();
-    for c in 0..3 {
-        let emits = level
+    let materials = || {
+        level
             .materials
             .iter()
             .zip(used)
-            .any(|(m, &u)| u && m.emission[c] > 0.0);
-        if !emits {
-            continue;
+            .filter(|(_, u)| **u)
+            .map(|(m, _)| m)
+    };
+    // The ratio of channel `a`'s emission to channel `b`'s where it is the
+    // same for every used material (within rounding), else `None`.
+    let ratio = |a: usize, b: usize| {
+        let rho_same = materials().all(|m| m.reflectance[a] == m.reflectance[b]);
+        let top = materials().max_by(|x, y| x.emission[b].total_cmp(&y.emission[b]))?;
+        if !rho_same || top.emission[b] <= 0.0 {
+            return None;
         }
-        let same = |a: usize, b: usize| {
-            level.materials.iter().zip(used).all(|(m, &u)| {
-                !u || (m.emission[a] == m.emission[b] && m.reflectance[a] == m.reflectance[b])
+        let k = top.emission[a] / top.emission[b];
+        materials()
+            .all(|m| {
+                let (ea, eb) = (m.emission[a], m.emission[b]);
+                (ea - k * eb).abs() <= 1e-12 * ea.abs().max(eb.abs())
             })
-        };
-        match classes.iter().position(|&r| same(r, c)) {
-            Some(k) => class_of[c] = Some(k),
-            None => {
-                class_of[c] = Some(classes.len());
-                classes.push(c);
-            }
+            .then_some(k)
+    };
+    let emits = |c: usize| materials().any(|m| m.emission[c] > 0.0);
+    // Channels grouped, each group listed in channel order.
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    for c in (0..3).filter(|&c| emits(c)) {
+        match groups.iter_mut().find(|g| ratio(c, g[0]).is_some()) {
+            Some(g) => g.push(c),
+            None => groups.push(vec![c]),
         }
     }
-    ChannelPlan { class_of, classes }
+    let mut class_of = [None; 3];
+    let mut classes = Vec::with_capacity(groups.len());
+    let mut scale = [0.0; 3];
+    for (k, g) in groups.iter().enumerate() {
+        // The brightest channel represents the group (the first of equals),
+        // so that the others are its answer times at most 1 and the bounds
+        // relative to the brightest emission hold for them.
+        let mut rep = g[0];
+        for &c in &g[1..] {
+            if ratio(c, rep).is_some_and(|r| r > 1.0) {
+                rep = c;
+            }
+        }
+        classes.push(rep);
+        for &c in g {
+            class_of[c] = Some(k);
+            scale[c] = if c == rep {
+                1.0
+            } else {
+                ratio(c, rep).unwrap_or(1.0)
+            };
+        }
+    }
+    ChannelPlan {
+        class_of,
+        classes,
+        scale,
+    }
 }
 
 /// Which response vectors a bake traces besides its own channels: every

@@ -204,7 +204,7 @@ fn energy(scene: &Scene, plan: &Plan, transport: &Transport, class_b: &[Vec<f64>
             &scene.patches,
             &scene.rho[c],
             &scene.emit[c],
-            &class_b[k],
+            &super::lightmap::scaled(&class_b[k], plan.channels.scale[c]),
         );
         energy.emitted += em;
         energy.absorbed += ab;

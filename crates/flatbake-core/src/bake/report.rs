@@ -223,7 +223,8 @@ impl Report {
     /// What the bake left out or approximated, in a level designer's words
     /// (the technical account is [`Report::summary`] and the `skipped` list):
     /// only what can change what the lightmap shows, not the exact shortcuts
-    /// (a grey scene solved once for three channels, a channel without light).
+    /// (a grey scene, or one light colour on grey walls, solved once for
+    /// three channels; a channel without light).
     pub fn plain_skips(&self) -> Vec<String> {
         let mut out = Vec::new();
         let mut push = |s: String| {
