@@ -127,7 +127,7 @@ impl ChannelPlan {
         let scaled = (0..3).any(|c| self.class_of[c].is_some() && self.scale[c] != 1.0);
         if self.classes.len() == 1 && self.class_of.iter().all(Option::is_some) {
             let reason = if scaled {
-                "one light colour, grey walls: 1 solve for 3 channels, scaled"
+                "one light colour, grey walls: 3 channels solved and gathered as 1, scaled"
             } else {
                 "grey scene: 1 solve for 3 channels"
             };
