@@ -93,10 +93,9 @@ fn rel_diff(a: &Baked, b: &Baked) -> f64 {
     max_diff(a, b) / top
 }
 
-#[test]
-fn one_light_colour_on_grey_walls_is_solved_once_and_scaled() {
-    // Two lamps of one colour at two brightnesses, grey walls: every
-    // channel's emission is one ratio of blue's (the brightest).
+/// A room of grey walls with a lamp of emission `l` in the top wall and
+/// one of emission `m` in the right wall.
+fn two_lamps(l: [f64; 3], m: [f64; 3]) -> Level {
     let rows = [
         "##########LLLL##########",
         "#......................#",
@@ -106,14 +105,17 @@ fn one_light_colour_on_grey_walls_is_solved_once_and_scaled() {
         "#..............#.......#",
         "########################",
     ];
-    let level = ascii(
+    ascii(
         &rows,
-        &[
-            ('#', wall(0.6)),
-            ('L', emitter([1.0, 2.0, 4.0])),
-            ('M', emitter([0.25, 0.5, 1.0])),
-        ],
-    );
+        &[('#', wall(0.6)), ('L', emitter(l)), ('M', emitter(m))],
+    )
+}
+
+#[test]
+fn one_light_colour_on_grey_walls_is_solved_once_and_scaled() {
+    // Two lamps of one colour at two brightnesses, grey walls: every
+    // channel's emission is one ratio of blue's (the brightest).
+    let level = two_lamps([1.0, 2.0, 4.0], [0.25, 0.5, 1.0]);
     let used = vec![true; level.materials.len()];
     let plan = plan_channels(&level, &used);
     assert_eq!(plan.classes, vec![2], "blue, the brightest, is solved");
@@ -150,21 +152,7 @@ fn one_light_colour_on_grey_walls_is_solved_once_and_scaled() {
 fn lights_of_two_colours_take_a_solve_per_channel() {
     // Each lamp alone would be one colour; together no channel is a
     // multiple of another.
-    let rows = [
-        "##########LLLL##########",
-        "#......................#",
-        "#.......###............M",
-        "#......................M",
-        "########################",
-    ];
-    let level = ascii(
-        &rows,
-        &[
-            ('#', wall(0.6)),
-            ('L', emitter([2.0, 1.0, 1.0])),
-            ('M', emitter([1.0, 1.0, 2.0])),
-        ],
-    );
+    let level = two_lamps([2.0, 1.0, 1.0], [1.0, 1.0, 2.0]);
     let b = run(&level, Quality::Normal, None, false);
     assert_eq!(b.report.solves, 3);
     assert_eq!(max_diff(&b, &run(&level, Quality::Normal, None, true)), 0.0);
