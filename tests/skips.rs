@@ -63,17 +63,23 @@ fn emitter(e: [f64; 3]) -> Material {
     }
 }
 
+/// `level` baked at `q` with one solve for three channels (asserted), and
+/// exhaustively. An exhaustive bake gathers every pixel exactly: so does
+/// the first, without the lattice (draft's lattice and block sweeps are
+/// tested in draft_local.rs).
+fn shared_and_exhaustive(level: &Level, q: Quality) -> (Baked, Baked) {
+    let mut s = Settings::new(q);
+    s.knobs.lattice = None;
+    let fast = bake(level, &s, &|_| {}).expect("bakes");
+    assert_eq!(fast.report.solves, 1, "{q}");
+    (fast, run(level, q, None, true))
+}
+
 #[test]
 fn grey_scene_is_solved_once_and_matches_three_solves() {
     let level = room(wall(0.6), light(2.0, 0.3));
     for q in [Quality::Draft, Quality::Normal] {
-        // An exhaustive bake gathers every pixel exactly: so does this one
-        // (draft's lattice and block sweeps are tested in draft_local.rs).
-        let mut s = Settings::new(q);
-        s.knobs.lattice = None;
-        let fast = bake(&level, &s, &|_| {}).expect("bakes");
-        let full = run(&level, q, None, true);
-        assert_eq!(fast.report.solves, 1, "{q}");
+        let (fast, full) = shared_and_exhaustive(&level, q);
         assert_eq!(full.report.solves, 3, "{q}");
         assert!(skipped(&fast, "channel"), "{:?}", fast.report.skipped);
         assert!(full.report.skipped.is_empty(), "{:?}", full.report.skipped);
@@ -121,11 +127,7 @@ fn one_light_colour_on_grey_walls_is_solved_once_and_scaled() {
     assert_eq!(plan.classes, vec![2], "blue, the brightest, is solved");
     assert_eq!(plan.scale, [0.25, 0.5, 1.0]);
     for q in [Quality::Draft, Quality::Normal] {
-        let mut s = Settings::new(q);
-        s.knobs.lattice = None;
-        let fast = bake(&level, &s, &|_| {}).expect("bakes");
-        let full = run(&level, q, None, true);
-        assert_eq!(fast.report.solves, 1, "{q}");
+        let (fast, full) = shared_and_exhaustive(&level, q);
         assert!(
             fast.report
                 .skipped
