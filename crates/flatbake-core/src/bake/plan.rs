@@ -186,35 +186,32 @@ pub fn plan_channels(level: &Level, used: &[bool]) -> ChannelPlan {
             .then_some(k)
     };
     let emits = |c: usize| materials().any(|m| m.emission[c] > 0.0);
-    // Channels grouped, each group listed in channel order.
-    let mut groups: Vec<Vec<usize>> = Vec::new();
+    // Channels grouped with their emission's ratio to the group's first.
+    let mut groups: Vec<Vec<(usize, f64)>> = Vec::new();
     for c in (0..3).filter(|&c| emits(c)) {
-        match groups.iter_mut().find(|g| ratio(c, g[0]).is_some()) {
-            Some(g) => g.push(c),
-            None => groups.push(vec![c]),
+        let joined = groups
+            .iter_mut()
+            .find_map(|g| ratio(c, g[0].0).map(|k| (g, k)));
+        match joined {
+            Some((g, k)) => g.push((c, k)),
+            None => groups.push(vec![(c, 1.0)]),
         }
     }
     let mut class_of = [None; 3];
     let mut classes = Vec::with_capacity(groups.len());
     let mut scale = [0.0; 3];
-    for (k, g) in groups.iter().enumerate() {
+    for (i, g) in groups.iter().enumerate() {
         // The brightest channel represents the group (the first of equals),
         // so that the others are its answer times at most 1 and the bounds
         // relative to the brightest emission hold for them.
-        let mut rep = g[0];
-        for &c in &g[1..] {
-            if ratio(c, rep).is_some_and(|r| r > 1.0) {
-                rep = c;
-            }
-        }
+        let (rep, top) = g
+            .iter()
+            .copied()
+            .fold(g[0], |best, (c, k)| if k > best.1 { (c, k) } else { best });
         classes.push(rep);
-        for &c in g {
-            class_of[c] = Some(k);
-            scale[c] = if c == rep {
-                1.0
-            } else {
-                ratio(c, rep).unwrap_or(1.0)
-            };
+        for &(c, k) in g {
+            class_of[c] = Some(i);
+            scale[c] = if c == rep { 1.0 } else { k / top };
         }
     }
     ChannelPlan {
