@@ -3,6 +3,8 @@
 //! sides on solid pixels (emitters glow), 0 on void — and, for layers and
 //! caches, the per-emitter [`Responses`] it is the sum of.
 
+use std::borrow::Cow;
+
 use super::radiosity::{Solved, TRACED_EMISSION};
 use super::responses::Responses;
 use super::{Ctx, Gathered, Log, Plan, Scene};
@@ -59,7 +61,7 @@ pub fn assemble(
     let radiosity: [Vec<f64>; 3] = std::array::from_fn(|c| {
         plan.channels.class_of[c].map_or_else(
             || vec![0.0; np],
-            |k| scaled(&solved.class_b[k], plan.channels.scale[c]),
+            |k| scaled(&solved.class_b[k], plan.channels.scale[c]).into_owned(),
         )
     });
     solid_pixels(level, geometry, patches, &radiosity, &mut rgb);
@@ -87,12 +89,12 @@ pub fn assemble(
     }
 }
 
-/// `b` times `k` (a copy of `b` where `k` is 1).
-pub(super) fn scaled(b: &[f64], k: f64) -> Vec<f64> {
+/// `b` times `k` (`b` itself where `k` is 1).
+pub(super) fn scaled(b: &[f64], k: f64) -> Cow<'_, [f64]> {
     if k == 1.0 {
-        b.to_vec()
+        Cow::Borrowed(b)
     } else {
-        b.iter().map(|v| v * k).collect()
+        Cow::Owned(b.iter().map(|v| v * k).collect())
     }
 }
 
