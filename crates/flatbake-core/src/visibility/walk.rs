@@ -118,6 +118,14 @@ pub(super) struct Coverage {
     hint: usize,
     /// Where the last test of a block ([`Coverage::hides`]) started.
     seen: usize,
+    /// How many intervals have no owner.
+    open: usize,
+    /// Once no interval is open: at least the farthest distance of every
+    /// owner over its interval (found when the last open interval closed,
+    /// then raised by every interval written), or infinity. A block
+    /// farther than that is hidden in every direction
+    /// ([`Coverage::closed_before`]).
+    far_bound: f64,
 }
 
 impl Coverage {
@@ -129,6 +137,16 @@ impl Coverage {
             owner: NONE,
             far: f64::INFINITY,
         });
+        self.open = 1;
+        self.far_bound = f64::INFINITY;
+    }
+
+    /// Whether every direction already hits something nearer than `dmin`:
+    /// what [`Coverage::hides`] would say of any range, without reading
+    /// the intervals.
+    #[inline]
+    fn closed_before(&self, dmin: f64) -> bool {
+        self.open == 0 && dmin > self.far_bound
     }
 
     /// The first interval that ends after `k` (`iv.partition_point(|v|
@@ -345,7 +363,20 @@ impl Coverage {
             seg_start = t.end;
         }
         let next = a + out.len();
+        // An owner's distance that is NaN is never hidden behind: no bound.
+        let far = |v: &Iv| if v.far.is_nan() { f64::INFINITY } else { v.far };
+        let was_open = self.open;
+        self.open -= self.iv[a..b].iter().filter(|v| v.owner == NONE).count();
+        self.open += out.iter().filter(|v| v.owner == NONE).count();
+        let written = out.iter().map(far).fold(f64::NEG_INFINITY, f64::max);
         self.iv.splice(a..b, out.drain(..));
+        if self.open == 0 {
+            self.far_bound = if was_open > 0 {
+                self.iv.iter().map(far).fold(f64::NEG_INFINITY, f64::max)
+            } else {
+                self.far_bound.max(written)
+            };
+        }
         self.out = out;
         next
     }
@@ -867,7 +898,7 @@ impl Sweeper {
             let (x0, y0) = (x as f64 * side, y as f64 * side);
             let (x1, y1) = (x0 + side, y0 + side);
             let dmin = box_distance_sq(p, x0, y0, x1, y1).sqrt();
-            if dmin > reach_max {
+            if dmin > reach_max || self.cover.closed_before(dmin) {
                 continue;
             }
             match box_range(&q, x0, y0, x1, y1) {
@@ -1067,5 +1098,101 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A room `side` px square with a wall all round and one-pixel dots
+    /// scattered in it, traced.
+    fn dotted_room(side: usize, seed: u64) -> Geometry {
+        use crate::level::{Cell, Level};
+        use crate::{Material, MaterialKind};
+        let cells = (0..side * side)
+            .map(|i| {
+                let (x, y) = (i % side, i / side);
+                let h = (i as u64 ^ seed).wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 58;
+                let border = x == 0 || y == 0 || x == side - 1 || y == side - 1;
+                if border || (x % 2 == 1 && y % 2 == 1 && h < 12) {
+                    Cell::Solid(0)
+                } else {
+                    Cell::Floor
+                }
+            })
+            .collect();
+        let wall = Material {
+            color: [128; 3],
+            kind: MaterialKind::Wall,
+            reflectance: [0.5; 3],
+            emission: [0.0; 3],
+            group: None,
+            line: None,
+        };
+        crate::geometry::trace(&Level {
+            name: "dots".into(),
+            width: side,
+            height: side,
+            cells,
+            albedo: vec![[0.5; 3]; side * side],
+            materials: vec![wall],
+            warnings: vec![],
+            lossy_format: None,
+            origin: Default::default(),
+            floor_fraction: None,
+        })
+    }
+
+    /// Through every insertion of a walk (edges near to far, then far to
+    /// near), the coverage's count of open intervals is theirs, and once
+    /// none is open its bound is at least every owner's farthest distance:
+    /// so that [`Coverage::closed_before`] only skips what
+    /// [`Coverage::hides`] would hide, over the whole view.
+    #[test]
+    fn a_closed_coverage_bounds_every_owner() {
+        let g = dotted_room(24, 5);
+        let mut sw = Sweeper::new();
+        let (mut checked, mut closed) = (0, 0);
+        for y in (1..23).step_by(3) {
+            for x in (1..23).step_by(2) {
+                let Some(comp) = g.component_at(x, y) else {
+                    continue;
+                };
+                let p = [x as f64 + 0.5, y as f64 + 0.5];
+                let q = Query::new(Viewpoint::new(p, View::Full, comp));
+                let mut order: Vec<u32> = (0..g.edges.len() as u32).collect();
+                order.sort_by(|&a, &b| {
+                    let d = |e: u32| g.edges[e as usize].distance_sq(p);
+                    d(a).total_cmp(&d(b))
+                });
+                for reversed in [false, true] {
+                    if reversed {
+                        order.reverse();
+                    }
+                    sw.pieces.clear();
+                    sw.cover.reset(q.kmax());
+                    sw.inserted.clear(g.edges.len());
+                    for &ei in &order {
+                        sw.insert_edge(&q, &g.edges, ei);
+                        let c = &mut sw.cover;
+                        let open = c.iv.iter().filter(|v| v.owner == NONE).count();
+                        assert_eq!(c.open, open, "{p:?}");
+                        checked += 1;
+                        if open > 0 {
+                            assert!(!c.closed_before(f64::MAX));
+                            continue;
+                        }
+                        closed += 1;
+                        let far = c.iv.iter().map(|v| v.far).fold(0.0, f64::max);
+                        assert!(c.far_bound >= far, "{p:?}: {} < {far}", c.far_bound);
+                        let past = c.far_bound * (1.0 + 1e-12) + 1e-12;
+                        assert!(c.closed_before(past));
+                        assert!(c.hides(0.0, q.kmax(), past), "{p:?}");
+                        assert!(!c.closed_before(far * 0.5));
+                    }
+                }
+            }
+        }
+        // Both states are reached, many times each.
+        assert!(
+            closed > 100 && checked > 2 * closed,
+            "{closed} of {checked}"
+        );
     }
 }
