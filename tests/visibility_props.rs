@@ -330,7 +330,7 @@ proptest! {
         } else {
             ([ex + el, ey], [ex, ey], Normal::Up)
         };
-        let e = Edge { a, b: e_end, normal, material: 0, loop_id: 0, run: 0, component: 0 };
+        let e = Edge { a, b: e_end, normal, material: 0, loop_id: 0, run: 0, component: 0, rectangle: false };
         let z = Zone::of(r, centres);
         if box_hides(&z, &e, &b) {
             let (zx0, zy0) = (z.x0 as f64 / 2.0, z.y0 as f64 / 2.0);
@@ -880,6 +880,43 @@ fn silhouettes_change_no_span_among_dots() {
             "dots {side} px: {taken} silhouettes from {} points",
             points.len()
         );
+    }
+}
+
+/// [`silhouettes_change_nothing`] on fields of rectangles of every shape
+/// from 1 x 1 to 4 x 3 (lamps, bars, blocks), with every edge wanted (a
+/// field of lamps: the sweep takes their two faces as one and cuts its
+/// spans at the corner) and with mixed reaches: silhouettes of sides
+/// longer than a pixel are taken there, and they are only rectangles'.
+#[test]
+fn silhouettes_change_no_span_among_rectangles() {
+    let sizes = [(2, 2), (3, 1), (1, 3), (4, 2), (2, 4), (4, 3), (1, 1)];
+    let l = walled(44, 44, |x, y| {
+        let (cx, cy) = ((x - 2) / 7, (y - 2) / 7);
+        let (w, h) = sizes[(cx + 3 * cy) % sizes.len()];
+        let (dx, dy) = ((x - 2) % 7, (y - 2) % 7);
+        x >= 2 && y >= 2 && x < 42 && y < 42 && dx < w && dy < h
+    });
+    let g = trace(&l);
+    assert!(g.edges.iter().any(|e| e.rectangle && e.len() > 1.0));
+    let points = free_centres_and_edge_points(&g, 44);
+    for (reach2, seed) in [(vec![f64::INFINITY; g.edges.len()], 0), (vec![], 7u64)] {
+        let reach2 = if reach2.is_empty() {
+            mixed_reaches(g.edges.len(), seed)
+        } else {
+            reach2
+        };
+        let taken = silhouettes_change_nothing(&g, &points, &reach2);
+        assert!(
+            taken > 4 * points.len() as u64,
+            "{taken} silhouettes from {} points",
+            points.len()
+        );
+    }
+    // The rectangles are the only loops of four edges: the walls' inner
+    // side is one too, but its corners are concave seen from inside.
+    for e in &g.edges {
+        assert_eq!(e.rectangle, g.loops[e.loop_id as usize].edges.len() == 4);
     }
 }
 

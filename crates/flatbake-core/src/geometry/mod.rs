@@ -84,6 +84,11 @@ pub struct Edge {
     pub run: u32,
     /// Component of the free pixels in front of the edge.
     pub component: u32,
+    /// Its loop is a rectangle (four edges, one per side): the
+    /// solid behind two of its edges that meet at a convex corner fills
+    /// the triangle between them.
+    #[serde(default)]
+    pub rectangle: bool,
 }
 
 impl Edge {
@@ -274,6 +279,13 @@ pub fn trace(level: &Level) -> Geometry {
     let (loops, mut edges) = link_loops(level.width as i32, level.height as i32, &units);
     // 4. Straight occluder runs.
     let runs = straight_runs(&loops, &mut edges);
+    for lp in loops.iter().filter(|lp| lp.edges.len() == 4) {
+        for le in &lp.edges {
+            if let Some(t) = le.transport {
+                edges[t as usize].rectangle = true;
+            }
+        }
+    }
 
     // 5. Components of free pixels, 4-connected.
     let (components, component_count) = label_components(level);
@@ -440,6 +452,7 @@ fn merge_chain(
                 loop_id,
                 run: u32::MAX,
                 component: u32::MAX,
+                rectangle: false,
             });
             Some(edges.len() as u32 - 1)
         };

@@ -108,6 +108,10 @@ struct Piece {
     lit: bool,
     dim: bool,
     dim_b: bool,
+    /// In a sweep: one of the two pieces of the wanted silhouette that
+    /// follows them (they have no events; the silhouette's spans are cut
+    /// into theirs).
+    face: bool,
 }
 
 impl Piece {
@@ -439,6 +443,7 @@ impl Query {
             lit: true,
             dim: false,
             dim_b: false,
+            face: false,
         });
     }
 
@@ -641,9 +646,13 @@ pub struct Sweeper {
     /// point is usually a neighbour, so listing its events in this order
     /// first leaves the sort little to do.
     order: Vec<u32>,
-    /// The same order by code (index in `events`), and the pieces it was
-    /// for (`edge * 4 + part * 2` each).
+    /// The same order by index in `events`, and the pieces it was for
+    /// (`edge * 4 + part * 2` each).
     codes: Vec<u32>,
+    /// Per piece of the current sweep: the index of its first event (a
+    /// face of a wanted silhouette has none, and the pieces after it are
+    /// not at twice their index).
+    first_event: Vec<u32>,
     prev_shape: Vec<u32>,
     shape: Vec<u32>,
     /// Per event id: its index in `events`, while not yet laid out.

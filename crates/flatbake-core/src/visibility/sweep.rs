@@ -56,7 +56,12 @@ impl Sweeper {
         }
         let mut left_out = 0;
         self.shape.clear();
+        self.first_event.clear();
         for (id, pc) in self.pieces.iter().enumerate() {
+            self.first_event.push(self.events.len() as u32);
+            if pc.face {
+                continue;
+            }
             let part = u32::from(id > 0 && self.pieces[id - 1].edge == pc.edge);
             let base = pc.edge * 4 + part * 2;
             // A silhouette's end is its second edge's (never split).
@@ -199,7 +204,7 @@ impl Sweeper {
             current = nearest;
             if open.map(|o| o.0) != shown {
                 if let Some((pc, k0, v0)) = open.take() {
-                    self.emit(edges, p, pc, (k0, v0), (key, vertex), out);
+                    self.emit_shown(edges, p, pc, (k0, v0), (key, vertex), out);
                 }
                 if let Some(pc) = shown {
                     open = Some((pc, key, vertex));
@@ -211,26 +216,84 @@ impl Sweeper {
     }
 
     /// Takes the last two `pieces`, each its edge's only one, as one
-    /// [`silhouette`] if neither is wanted and they meet at a convex
-    /// corner; returns whether it did. A field of one-pixel pillars, seen
-    /// from a pixel, is two unwanted pieces per pillar, most of them only
-    /// hiding what is behind them; the sweep then sorts half as many
-    /// events. The candidates list a pillar's edges together (their
-    /// loop's), so its two pieces come one after the other.
+    /// [`silhouette`] if both are wanted or neither is, and they meet at a
+    /// convex corner; returns whether it did. A field of one-pixel pillars,
+    /// seen from a pixel, is two unwanted pieces per pillar, most of them
+    /// only hiding what is behind them; a field of lamps, two wanted
+    /// pieces per lamp. The sweep then sorts half as many events. The
+    /// candidates list a pillar's edges together (their loop's), so its
+    /// two pieces come one after the other. An unwanted silhouette takes
+    /// their place; a wanted one follows them, in order, marked
+    /// [`Piece::face`], and its spans are cut into theirs
+    /// ([`Sweeper::emit_shown`]).
     #[inline]
     fn take_silhouette(&mut self, edges: &[Edge], q: &Query) -> bool {
         let n = self.pieces.len();
         let (a, b) = (&self.pieces[n - 2], &self.pieces[n - 1]);
-        if a.lit || b.lit || self.no_silhouettes {
+        if a.lit != b.lit || self.no_silhouettes {
             return false;
         }
-        let Some((m, _)) = silhouette(edges, q, a, b) else {
+        let Some((mut m, swapped)) = silhouette(edges, q, a, b) else {
             return false;
         };
-        self.pieces[n - 2] = m;
-        self.pieces.pop();
         self.silhouettes += 1;
+        if !a.lit {
+            self.pieces[n - 2] = m;
+            self.pieces.pop();
+            return true;
+        }
+        if swapped {
+            self.pieces.swap(n - 2, n - 1);
+        }
+        self.pieces[n - 2].face = true;
+        self.pieces[n - 1].face = true;
+        m.lit = true;
+        self.pieces.push(m);
         true
+    }
+
+    /// Emits the span of piece `pc` from `from` to `to`; a silhouette's as
+    /// its two faces' (the two pieces before it), cut at its corner.
+    fn emit_shown(
+        &self,
+        edges: &[Edge],
+        p: [f64; 2],
+        pc: u32,
+        from: (f64, [f64; 2]),
+        to: (f64, [f64; 2]),
+        out: &mut Vec<Span>,
+    ) {
+        self.faces(pc, from, to, |face, from, to| {
+            self.emit(edges, p, face, from, to, out)
+        });
+    }
+
+    /// Calls `f` with the span of piece `pc` from `from` to `to`, or for a
+    /// silhouette with its two faces' (the two pieces before it, in
+    /// order), cut at its corner.
+    pub(super) fn faces(
+        &self,
+        pc: u32,
+        from: (f64, [f64; 2]),
+        to: (f64, [f64; 2]),
+        mut f: impl FnMut(u32, (f64, [f64; 2]), (f64, [f64; 2])),
+    ) {
+        let piece = &self.pieces[pc as usize];
+        if !piece.silhouette {
+            f(pc, from, to);
+            return;
+        }
+        let (corner, at) = (piece.c, self.pieces[pc as usize - 2].vb);
+        if from.0 < corner {
+            f(pc - 2, from, if to.0 <= corner { to } else { (corner, at) });
+        }
+        if to.0 > corner {
+            f(
+                pc - 1,
+                if from.0 >= corner { from } else { (corner, at) },
+                to,
+            );
+        }
     }
 
     /// Marks the `pieces` of one edge as wanted or not (`(lit, dim)`, see
@@ -281,7 +344,10 @@ impl Sweeper {
         self.order.clear();
         self.order.extend(keys.iter().map(|k| k.id()));
         self.codes.clear();
-        self.codes.extend(keys.iter().map(|k| k.code()));
+        self.codes.extend(
+            keys.iter()
+                .map(|k| self.first_event[k.piece() as usize] + (k.code() & 1)),
+        );
         std::mem::swap(&mut self.events, &mut self.sorted);
     }
 
@@ -366,12 +432,13 @@ impl Sweeper {
 
 /// Pieces `a` and `b` as one silhouette, if they meet end to end (the
 /// same vertex at the same pseudo-angle) at a convex corner of solid, and
-/// one of their edges is at most one pixel long; and whether `b` comes
-/// first (at `ka`). Nothing lies between the two pieces and the straight
-/// segment across their far ends: that triangle is at most a pixel deep
-/// behind the longer edge, and every edge has solid for a pixel behind
-/// it. So the segment hides from the query point exactly what the two
-/// pieces hide.
+/// one of their edges is at most one pixel long or both are sides of one
+/// rectangle ([`Edge::rectangle`]); and whether `b` comes first (at `ka`).
+/// Nothing lies between the two pieces and the straight segment across
+/// their far ends: that triangle is at most a pixel deep behind the longer
+/// edge, and every edge has solid for a pixel behind it (or it lies inside
+/// the rectangle). So the segment hides from the query point exactly what
+/// the two pieces hide.
 pub(super) fn silhouette(edges: &[Edge], q: &Query, a: &Piece, b: &Piece) -> Option<(Piece, bool)> {
     if a.edge == b.edge || a.silhouette || b.silhouette {
         return None;
@@ -384,7 +451,8 @@ pub(super) fn silhouette(edges: &[Edge], q: &Query, a: &Piece, b: &Piece) -> Opt
         return None;
     };
     let (ef, es) = (&edges[f.edge as usize], &edges[s.edge as usize]);
-    if ef.len() > 1.0 && es.len() > 1.0 {
+    let rectangle = ef.rectangle && es.rectangle && ef.loop_id == es.loop_id;
+    if ef.len() > 1.0 && es.len() > 1.0 && !rectangle {
         return None;
     }
     // Convex: the second piece runs from the corner to the solid side of
@@ -417,6 +485,7 @@ pub(super) fn silhouette(edges: &[Edge], q: &Query, a: &Piece, b: &Piece) -> Opt
         lit: false,
         dim: f.dim,
         dim_b: s.dim,
+        face: false,
     };
     Some((piece, std::ptr::eq(f, b)))
 }
