@@ -368,7 +368,12 @@ impl Coverage {
         let was_open = self.open;
         self.open -= self.iv[a..b].iter().filter(|v| v.owner == NONE).count();
         self.open += out.iter().filter(|v| v.owner == NONE).count();
-        let written = out.iter().map(far).fold(f64::NEG_INFINITY, f64::max);
+        // (Only a coverage closed before needs the distances written.)
+        let written = if was_open == 0 {
+            out.iter().map(far).fold(f64::NEG_INFINITY, f64::max)
+        } else {
+            f64::NEG_INFINITY
+        };
         self.iv.splice(a..b, out.drain(..));
         if self.open == 0 {
             self.far_bound = if was_open > 0 {
