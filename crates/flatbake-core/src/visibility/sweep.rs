@@ -253,7 +253,9 @@ impl Sweeper {
     }
 
     /// Emits the span of piece `pc` from `from` to `to`; a silhouette's as
-    /// its two faces' (the two pieces before it), cut at its corner.
+    /// its two faces' (the two pieces before it, in order), cut at its
+    /// corner (as a walk reads a silhouette's spans off its coverage).
+    #[inline]
     fn emit_shown(
         &self,
         edges: &[Edge],
@@ -263,36 +265,19 @@ impl Sweeper {
         to: (f64, [f64; 2]),
         out: &mut Vec<Span>,
     ) {
-        self.faces(pc, from, to, |face, from, to| {
-            self.emit(edges, p, face, from, to, out)
-        });
-    }
-
-    /// Calls `f` with the span of piece `pc` from `from` to `to`, or for a
-    /// silhouette with its two faces' (the two pieces before it, in
-    /// order), cut at its corner.
-    pub(super) fn faces(
-        &self,
-        pc: u32,
-        from: (f64, [f64; 2]),
-        to: (f64, [f64; 2]),
-        mut f: impl FnMut(u32, (f64, [f64; 2]), (f64, [f64; 2])),
-    ) {
         let piece = &self.pieces[pc as usize];
         if !piece.silhouette {
-            f(pc, from, to);
+            self.emit(edges, p, pc, from, to, out);
             return;
         }
         let (corner, at) = (piece.c, self.pieces[pc as usize - 2].vb);
         if from.0 < corner {
-            f(pc - 2, from, if to.0 <= corner { to } else { (corner, at) });
+            let end = if to.0 <= corner { to } else { (corner, at) };
+            self.emit(edges, p, pc - 2, from, end, out);
         }
         if to.0 > corner {
-            f(
-                pc - 1,
-                if from.0 >= corner { from } else { (corner, at) },
-                to,
-            );
+            let start = if from.0 >= corner { from } else { (corner, at) };
+            self.emit(edges, p, pc - 1, start, to, out);
         }
     }
 

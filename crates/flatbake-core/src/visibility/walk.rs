@@ -982,7 +982,19 @@ impl Sweeper {
                 vertex(&self.pieces, cover.iv[i - 1].vend)
             };
             let v1 = vertex(&self.pieces, cover.iv[i].vend);
-            self.faces(o, (k0, v0), (k1, v1), &mut read);
+            if !pc.silhouette {
+                read(o, (k0, v0), (k1, v1));
+                continue;
+            }
+            let (corner, at) = (pc.c, self.pieces[o as usize - 2].vb);
+            if k0 < corner {
+                let to = if k1 <= corner { (k1, v1) } else { (corner, at) };
+                read(o - 2, (k0, v0), to);
+            }
+            if k1 > corner {
+                let from = if k0 >= corner { (k0, v0) } else { (corner, at) };
+                read(o - 1, from, (k1, v1));
+            }
         }
         left_out
     }
