@@ -368,18 +368,23 @@ impl Coverage {
         let was_open = self.open;
         self.open -= self.iv[a..b].iter().filter(|v| v.owner == NONE).count();
         self.open += out.iter().filter(|v| v.owner == NONE).count();
-        // (Only a coverage closed before needs the distances written.)
-        let written = if was_open == 0 {
-            out.iter().map(far).fold(f64::NEG_INFINITY, f64::max)
-        } else {
-            f64::NEG_INFINITY
-        };
         self.iv.splice(a..b, out.drain(..));
         if self.open == 0 {
-            self.far_bound = if was_open > 0 {
-                self.iv.iter().map(far).fold(f64::NEG_INFINITY, f64::max)
+            // Every interval when the last open one just closed; else
+            // those written, raising the bound.
+            let read = if was_open > 0 {
+                0..self.iv.len()
             } else {
-                self.far_bound.max(written)
+                a..next
+            };
+            let top = self.iv[read]
+                .iter()
+                .map(far)
+                .fold(f64::NEG_INFINITY, f64::max);
+            self.far_bound = if was_open > 0 {
+                top
+            } else {
+                self.far_bound.max(top)
             };
         }
         self.out = out;
