@@ -76,8 +76,11 @@ impl Sweeper {
         self.active.clear();
         let n = self.events.len();
         let mut i = 0;
-        // The span under construction: (piece, start key, start vertex).
-        let mut open: Option<(u32, f64, [f64; 2])> = None;
+        const NONE: u32 = u32::MAX;
+        // The span under construction: its piece (`NONE` if none), start
+        // key and start vertex (three locals: as one `Option` of a tuple,
+        // its copy on every change stalled on a store).
+        let (mut open, mut open_k, mut open_v) = (NONE, 0.0, [0.0; 2]);
         // Position of each piece in `active` (for O(1) removal).
         self.at.clear();
         self.at.resize(self.pieces.len(), u32::MAX);
@@ -202,16 +205,15 @@ impl Sweeper {
                 _ => nearest,
             };
             current = nearest;
-            if open.map(|o| o.0) != shown {
-                if let Some((pc, k0, v0)) = open.take() {
-                    self.emit_shown(edges, p, pc, (k0, v0), (key, vertex), out);
+            let shown = shown.unwrap_or(NONE);
+            if open != shown {
+                if open != NONE {
+                    self.emit_shown(edges, p, open, (open_k, open_v), (key, vertex), out);
                 }
-                if let Some(pc) = shown {
-                    open = Some((pc, key, vertex));
-                }
+                (open, open_k, open_v) = (shown, key, vertex);
             }
         }
-        debug_assert!(open.is_none(), "the last event closes every span");
+        debug_assert!(open == NONE, "the last event closes every span");
         left_out
     }
 
@@ -424,6 +426,10 @@ impl Sweeper {
 /// edge, and every edge has solid for a pixel behind it (or it lies inside
 /// the rectangle). So the segment hides from the query point exactly what
 /// the two pieces hide.
+///
+/// Inlined into its callers: returned through memory, the piece was
+/// written in parts and read back whole, a stall on every silhouette.
+#[inline(always)]
 pub(super) fn silhouette(edges: &[Edge], q: &Query, a: &Piece, b: &Piece) -> Option<(Piece, bool)> {
     if a.edge == b.edge || a.silhouette || b.silhouette {
         return None;
