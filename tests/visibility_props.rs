@@ -90,7 +90,7 @@ proptest! {
                 let p = [x as f64 + 0.5, y as f64 + 0.5];
                 let (mut a, mut b): (Vec<Span>, Vec<Span>) = (vec![], vec![]);
                 sw.sweep(&g.edges, &all, Viewpoint::new(p, View::Full, comp), &mut a);
-                sw.walk(&blocks, Viewpoint::new(p, View::Full, comp), f64::INFINITY, &[], &mut b);
+                sw.walk(&blocks, Viewpoint::new(p, View::Full, comp), f64::INFINITY, &mut b);
                 let (a, b) = (wide(&a), wide(&b));
                 prop_assert_eq!(a.len(), b.len(), "pixel ({}, {})", x, y);
                 for (s, t) in a.iter().zip(&b) {
@@ -130,7 +130,7 @@ proptest! {
             let p = e.point_at(s);
             let (mut a, mut b): (Vec<Span>, Vec<Span>) = (vec![], vec![]);
             sw.sweep(&g.edges, &all, Viewpoint::new(p, View::Half(e.normal), e.component), &mut a);
-            sw.walk(&blocks, Viewpoint::new(p, View::Half(e.normal), e.component), f64::INFINITY, &[], &mut b);
+            sw.walk(&blocks, Viewpoint::new(p, View::Half(e.normal), e.component), f64::INFINITY, &mut b);
             let (a, b) = (wide(&a), wide(&b));
             prop_assert_eq!(a.len(), b.len());
             for (s, t) in a.iter().zip(&b) {
@@ -591,7 +591,7 @@ fn walk_over_small_blocks_agrees_with_the_sweep() {
     for at in free_centres_and_edge_points(&g, 48) {
         let (mut a, mut b): (Vec<Span>, Vec<Span>) = (vec![], vec![]);
         sw.sweep(&g.edges, &all, at, &mut a);
-        sw.walk(&blocks, at, f64::INFINITY, &[], &mut b);
+        sw.walk(&blocks, at, f64::INFINITY, &mut b);
         assert_same_spans(&a, &b, at.p);
         let a = wide(&a);
         far_seen += a
@@ -653,8 +653,8 @@ fn far_wanted_changes_no_wanted_span() {
         let (mut dim_all, mut dim_far) = (0, 0);
         for at in free_centres_and_edge_points(&g, side) {
             let (mut a, mut b): (Vec<Span>, Vec<Span>) = (vec![], vec![]);
-            dim_all += sw.walk_wanted(&blocks, at, f64::INFINITY, &[], wanted, None, &mut a);
-            dim_far += sw.walk_wanted(&blocks, at, f64::INFINITY, &[], wanted, Some(&far), &mut b);
+            dim_all += sw.walk_wanted(&blocks, at, f64::INFINITY, wanted, None, &mut a);
+            dim_far += sw.walk_wanted(&blocks, at, f64::INFINITY, wanted, Some(&far), &mut b);
             assert_eq!(
                 a, b,
                 "dots {side} px, one in {sparse}, radius {cell}, cosine {cosine:?}: point {:?}",
@@ -729,7 +729,6 @@ fn receiving_cosine_leaves_out_only_light_below_the_bound() {
             &blocks,
             at,
             f64::INFINITY,
-            &[],
             with(Some(a)),
             Some(&far),
             &mut walked,
@@ -840,8 +839,8 @@ fn silhouettes_change_nothing(g: &Geometry, points: &[Viewpoint], reach2: &[f64]
         assert_eq!(dim_a, dim_b, "left out, point {:?}", at.p);
         let (mut a, mut b): (Vec<Span>, Vec<Span>) = (vec![], vec![]);
         let inf = f64::INFINITY;
-        let dim_a = with.walk_wanted(&blocks, at, inf, &[], wanted, None, &mut a);
-        let dim_b = without.walk_wanted(&blocks, at, inf, &[], wanted, None, &mut b);
+        let dim_a = with.walk_wanted(&blocks, at, inf, wanted, None, &mut a);
+        let dim_b = without.walk_wanted(&blocks, at, inf, wanted, None, &mut b);
         assert_same_spans(&a, &b, at.p);
         assert_eq!(dim_a, dim_b, "left out by the walk, point {:?}", at.p);
     }

@@ -260,11 +260,9 @@ where
             })
             .collect();
         let deferred = SWEEPER.with(|cell| {
-            let (sweeper, spans, seeds) = &mut *cell.borrow_mut();
+            let (sweeper, spans, seen) = &mut *cell.borrow_mut();
             let mut skipped = 0;
             let mut dropped = 0;
-            // Walks are seeded with what the previous point of the region saw.
-            let mut seed_region = usize::MAX;
             // Per region with a long open list: sweep it (`Some(true)`) or
             // walk, decided by what its first point sees.
             let mut sweep_open: Vec<Option<bool>> = vec![None; leaf.regions.len()];
@@ -309,14 +307,10 @@ where
                             )
                         }
                         None => {
-                            if region != Some(seed_region) {
-                                seeds.clear();
-                            }
                             dropped += sweeper.walk_wanted(
                                 structures.blocks(),
                                 Viewpoint::new(at(i), view(i), comp),
                                 reach_max,
-                                seeds,
                                 reach2.map(|reach2| Wanted {
                                     reach2,
                                     class: None,
@@ -325,10 +319,6 @@ where
                                 reaches.and_then(|r| r.far(geometry)),
                                 spans,
                             );
-                            seeds.clear();
-                            seeds.extend(spans.iter().map(|s| s.edge));
-                            seeds.dedup();
-                            seed_region = region.unwrap_or(usize::MAX);
                             // A point that sees most of its region's list
                             // has open ground around it: one sort of the
                             // list costs its neighbours less than walking
@@ -339,7 +329,12 @@ where
                             {
                                 let listed =
                                     leaf.regions[r].candidates.as_ref().map_or(0, Vec::len);
-                                sweep_open[r] = Some(2 * seeds.len() >= listed);
+                                // The edges it sees (an edge's spans in a row
+                                // counted once).
+                                seen.clear();
+                                seen.extend(spans.iter().map(|s| s.edge));
+                                seen.dedup();
+                                sweep_open[r] = Some(2 * seen.len() >= listed);
                             }
                         }
                     }

@@ -836,10 +836,9 @@ impl Sweeper {
         true
     }
 
-    /// Adds edge `ei`'s visible pieces to the coverage, once per walk.
-    /// (Whether a piece is wanted is only asked of those that own part of
-    /// the coverage at the end: most pieces a walk inserts lose.)
-    #[inline]
+    /// Adds edge `ei`'s visible pieces to the coverage, once per walk
+    /// (each piece on its own, without silhouettes).
+    #[cfg(test)]
     fn insert_edge(&mut self, q: &Query, edges: &[Edge], ei: u32) {
         if !self.inserted.insert(ei as usize) {
             return;
@@ -853,18 +852,11 @@ impl Sweeper {
 
     /// The same result as [`Sweeper::sweep`] over all edges within
     /// `reach_max`, found by walking `blocks` from near to far and skipping
-    /// what is already hidden. `seeds` are inserted first: the edges a nearby
-    /// point saw fill the coverage early, so more of the walk is skipped (any
-    /// list gives the same result).
-    pub fn walk(
-        &mut self,
-        blocks: &Blocks,
-        at: Viewpoint,
-        reach_max: f64,
-        seeds: &[u32],
-        out: &mut Vec<Span>,
-    ) {
-        self.walk_wanted(blocks, at, reach_max, seeds, None, None, out);
+    /// what is already hidden. (Each walk starts from an empty coverage:
+    /// seeding it with the edges the previous point saw made every class
+    /// of level slower, measured in docs/performance.md.)
+    pub fn walk(&mut self, blocks: &Blocks, at: Viewpoint, reach_max: f64, out: &mut Vec<Span>) {
+        self.walk_wanted(blocks, at, reach_max, None, None, out);
     }
 
     /// [`Sweeper::walk`], returning only the spans `wanted`; returns how
@@ -873,13 +865,11 @@ impl Sweeper {
     /// walked only in the directions of the edges it lists as wanted from
     /// the point: the spans are the same, and the spans left out that lie
     /// in the other directions past the radius are not counted.
-    #[allow(clippy::too_many_arguments)]
     pub fn walk_wanted(
         &mut self,
         blocks: &Blocks,
         at: Viewpoint,
         reach_max: f64,
-        seeds: &[u32],
         wanted: Option<Wanted>,
         far: Option<&FarWanted>,
         out: &mut Vec<Span>,
@@ -889,9 +879,6 @@ impl Sweeper {
         self.pieces.clear();
         self.cover.reset(q.kmax());
         self.inserted.clear(edges.len());
-        for &ei in seeds {
-            self.insert_edge(&q, edges, ei);
-        }
         let closed_past = match (far, wanted) {
             (Some(far), Some(w)) => self.open_directions(far, &q, w.cosine),
             _ => None,
