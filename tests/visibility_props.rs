@@ -899,12 +899,10 @@ fn silhouettes_change_no_span_among_rectangles() {
     let g = trace(&l);
     assert!(g.edges.iter().any(|e| e.rectangle && e.len() > 1.0));
     let points = free_centres_and_edge_points(&g, 44);
-    for (reach2, seed) in [(vec![f64::INFINITY; g.edges.len()], 0), (vec![], 7u64)] {
-        let reach2 = if reach2.is_empty() {
-            mixed_reaches(g.edges.len(), seed)
-        } else {
-            reach2
-        };
+    for reach2 in [
+        vec![f64::INFINITY; g.edges.len()],
+        mixed_reaches(g.edges.len(), 7),
+    ] {
         let taken = silhouettes_change_nothing(&g, &points, &reach2);
         assert!(
             taken > 4 * points.len() as u64,

@@ -372,20 +372,12 @@ impl Coverage {
         if self.open == 0 {
             // Every interval when the last open one just closed; else
             // those written, raising the bound.
-            let read = if was_open > 0 {
-                0..self.iv.len()
+            let (read, from) = if was_open > 0 {
+                (0..self.iv.len(), f64::NEG_INFINITY)
             } else {
-                a..next
+                (a..next, self.far_bound)
             };
-            let top = self.iv[read]
-                .iter()
-                .map(far)
-                .fold(f64::NEG_INFINITY, f64::max);
-            self.far_bound = if was_open > 0 {
-                top
-            } else {
-                self.far_bound.max(top)
-            };
+            self.far_bound = self.iv[read].iter().map(far).fold(from, f64::max);
         }
         self.out = out;
         next
