@@ -231,13 +231,27 @@ pub fn energy_balance(
         // patch: report it as escaped/absorbed by first hit unknown = escaped.
         return (emitted, 0.0, emitted);
     };
+    // Per patch in parallel, summed in patch order: the same bits for any
+    // thread count.
+    use rayon::prelude::*;
+    let terms: Vec<[f64; 3]> = (0..n)
+        .into_par_iter()
+        .with_min_len(1024)
+        .map(|i| {
+            let d = ff.dlen[i];
+            let h: f64 = ff.row(i).map(|(j, f)| f * b[j]).sum();
+            [
+                d * e[i],
+                d * (1.0 - rho[i]) * h,
+                d * b[i] * (1.0 - ff.coverage[i]),
+            ]
+        })
+        .collect();
     let (mut em, mut ab, mut es) = (0.0, 0.0, 0.0);
-    for i in 0..n {
-        let d = ff.dlen[i];
-        let h: f64 = ff.row(i).map(|(j, f)| f * b[j]).sum();
-        em += d * e[i];
-        ab += d * (1.0 - rho[i]) * h;
-        es += d * b[i] * (1.0 - ff.coverage[i]);
+    for [m, a, s] in terms {
+        em += m;
+        ab += a;
+        es += s;
     }
     (em, ab, es)
 }

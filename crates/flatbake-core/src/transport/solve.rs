@@ -182,23 +182,26 @@ impl<'a> System<'a> {
         for (k, &i) in unknown.iter().enumerate() {
             local[i] = k as u32;
         }
-        let mut diag = Vec::with_capacity(unknown.len());
-        let mut rhs = Vec::with_capacity(unknown.len());
-        for &i in &unknown {
-            let mut d = ff.dlen[i] / rho[i];
-            let mut b = ff.dlen[i] * e[i] / rho[i];
-            for k in ff.row_ptr[i]..ff.row_ptr[i + 1] {
-                let j = ff.col[k] as usize;
-                let s = ff.val[k];
-                if j == i {
-                    d -= s;
-                } else if local[j] == u32::MAX {
-                    b += s * e[j];
+        // Each row on its own, in parallel (summed in row order: the same
+        // bits for any thread count).
+        let (diag, rhs): (Vec<f64>, Vec<f64>) = unknown
+            .par_iter()
+            .with_min_len(1024)
+            .map(|&i| {
+                let mut d = ff.dlen[i] / rho[i];
+                let mut b = ff.dlen[i] * e[i] / rho[i];
+                for k in ff.row_ptr[i]..ff.row_ptr[i + 1] {
+                    let j = ff.col[k] as usize;
+                    let s = ff.val[k];
+                    if j == i {
+                        d -= s;
+                    } else if local[j] == u32::MAX {
+                        b += s * e[j];
+                    }
                 }
-            }
-            diag.push(d);
-            rhs.push(b);
-        }
+                (d, b)
+            })
+            .unzip();
         System {
             ff,
             unknown,
@@ -251,6 +254,10 @@ impl<'a> System<'a> {
     /// Groups of unknowns coupled together whose rows balance exactly: no
     /// light leaves them, so with `rho = 1` the system is singular there.
     fn closed_groups(&self, ff: &FormFactors, rho: &[f64]) -> Vec<Vec<usize>> {
+        // Only perfect mirrors can close a group: without one, no search.
+        if self.unknown.iter().all(|&g| rho[g] < 1.0) {
+            return Vec::new();
+        }
         let n = self.len();
         let mut seen = vec![false; n];
         let mut groups = Vec::new();
