@@ -347,16 +347,14 @@ fn visit_point_rows(
         &|_| {},
         None,
         &|i, spans| {
-            let mut out = Vec::new();
-            point_factors(
-                edges,
-                patches,
-                pts.pos[i],
-                normal(i),
-                spans,
-                falloff,
-                &mut out,
-            );
+            // Found in a buffer of the thread's and copied out at its size:
+            // one allocation per point instead of one per doubling (the
+            // threads' allocations contend where they share a heap).
+            let out = SCRATCH.with_borrow_mut(|(out, ..)| {
+                out.clear();
+                point_factors(edges, patches, pts.pos[i], normal(i), spans, falloff, out);
+                out.to_vec()
+            });
             let w = pts.owner[i] as usize;
             f(w, i - pts.start[w], out);
         },
@@ -616,7 +614,28 @@ type Merged = (Vec<(u32, f64, f32)>, f64, u64);
 /// the row's sum. Returns the row, its sum before (in patch order) and how
 /// many entries were left out.
 fn merge_points(rows: &[Vec<(u32, f64)>], xs: &[f64], ws: &[f64], sliver: f64) -> Merged {
-    let mut row: Vec<(u32, f64, f64)> = Vec::with_capacity(rows.iter().map(Vec::len).sum());
+    SCRATCH
+        .with_borrow_mut(|(_, row, by_value)| merge_points_in(rows, xs, ws, sliver, row, by_value))
+}
+
+thread_local! {
+    /// Per thread: a point's row while it is found, and a patch's merged
+    /// row and its entries by value while they are merged.
+    #[allow(clippy::type_complexity)]
+    static SCRATCH: std::cell::RefCell<(PointRow, Vec<(u32, f64, f64)>, Vec<(f64, u32)>)> =
+        Default::default();
+}
+
+/// [`merge_points`] in the buffers `row` and `by_value`.
+fn merge_points_in(
+    rows: &[Vec<(u32, f64)>],
+    xs: &[f64],
+    ws: &[f64],
+    sliver: f64,
+    row: &mut Vec<(u32, f64, f64)>,
+    by_value: &mut Vec<(f64, u32)>,
+) -> Merged {
+    row.clear();
     for ((r, &x), &w) in rows.iter().zip(xs).zip(ws) {
         let t = w * (x - 0.5);
         row.extend(r.iter().map(|&(j, v)| (j, v * w, v * t)));
@@ -634,12 +653,13 @@ fn merge_points(rows: &[Vec<(u32, f64)>], xs: &[f64], ws: &[f64], sliver: f64) -
     let sum: f64 = row.iter().map(|e| e.1).sum();
     let mut last = None;
     if sliver > 0.0 && row.len() > 1 {
-        let mut by_value: Vec<(f64, u32)> = row.iter().map(|e| (e.1, e.0)).collect();
+        by_value.clear();
+        by_value.extend(row.iter().map(|e| (e.1, e.0)));
         by_value.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         let (budget, mut spent) = (sliver * sum, 0.0);
         // The last entry to leave out, as (value, patch): every entry
         // ordered before it goes too.
-        for &(v, j) in &by_value {
+        for &(v, j) in by_value.iter() {
             if spent + v > budget {
                 break;
             }
