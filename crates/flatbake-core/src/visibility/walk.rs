@@ -883,9 +883,10 @@ impl Sweeper {
         self.cover.reset(q.kmax());
         self.inserted.clear(edges.len());
         // The far directions are read only once the walk has inserted, past
-        // the radius, edges in proportion to the groups it would read.
+        // the radius, edges in proportion to the groups it would read: this
+        // many more.
         let mut reading = match (far, wanted) {
-            (Some(far), Some(w)) => Some((far, w.cosine, 0.0)),
+            (Some(far), Some(w)) => Some((far, w.cosine, FarWanted::LAZY * far.at(p).len() as f64)),
             _ => None,
         };
         let mut closed_past = None;
@@ -925,11 +926,11 @@ impl Sweeper {
             }
             if level == 0 {
                 let b = y as usize * nx + x as usize;
-                if let Some((far, cosine, past)) = &mut reading
+                if let Some((far, cosine, left)) = &mut reading
                     && dmin > far.radius
                 {
-                    *past += (blocks.start[b + 1] - blocks.start[b]) as f64;
-                    if *past >= FarWanted::LAZY * far.at(p).len() as f64 {
+                    *left -= (blocks.start[b + 1] - blocks.start[b]) as f64;
+                    if *left <= 0.0 {
                         closed_past = self.open_directions(far, &q, *cosine);
                         reading = None;
                     }
