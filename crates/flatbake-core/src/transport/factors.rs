@@ -350,7 +350,7 @@ fn visit_point_rows(
             // Found in a buffer of the thread's and copied out at its size:
             // one allocation per point instead of one per doubling (the
             // threads' allocations contend where they share a heap).
-            let out = SCRATCH.with_borrow_mut(|(out, ..)| {
+            let out = SCRATCH.with_borrow_mut(|Scratch { point: out, .. }| {
                 out.clear();
                 point_factors(edges, patches, pts.pos[i], normal(i), spans, falloff, out);
                 out.to_vec()
@@ -614,16 +614,24 @@ type Merged = (Vec<(u32, f64, f32)>, f64, u64);
 /// the row's sum. Returns the row, its sum before (in patch order) and how
 /// many entries were left out.
 fn merge_points(rows: &[Vec<(u32, f64)>], xs: &[f64], ws: &[f64], sliver: f64) -> Merged {
-    SCRATCH
-        .with_borrow_mut(|(_, row, by_value)| merge_points_in(rows, xs, ws, sliver, row, by_value))
+    SCRATCH.with_borrow_mut(|Scratch { row, by_value, .. }| {
+        merge_points_in(rows, xs, ws, sliver, row, by_value)
+    })
+}
+
+/// A thread's buffers for the form factors' rows.
+#[derive(Default)]
+struct Scratch {
+    /// A point's row while it is found.
+    point: PointRow,
+    /// A patch's merged row while it is merged.
+    row: Vec<(u32, f64, f64)>,
+    /// Its entries by value, for the slivers.
+    by_value: Vec<(f64, u32)>,
 }
 
 thread_local! {
-    /// Per thread: a point's row while it is found, and a patch's merged
-    /// row and its entries by value while they are merged.
-    #[allow(clippy::type_complexity)]
-    static SCRATCH: std::cell::RefCell<(PointRow, Vec<(u32, f64, f64)>, Vec<(f64, u32)>)> =
-        Default::default();
+    static SCRATCH: std::cell::RefCell<Scratch> = Default::default();
 }
 
 /// [`merge_points`] in the buffers `row` and `by_value`.
