@@ -541,6 +541,31 @@ struct Group {
     reach: f64,
 }
 
+impl Group {
+    /// The cells of `cell` px (`nx` by `ny`) whose points the group may
+    /// reach: columns and rows.
+    fn cells(
+        &self,
+        cell: f64,
+        nx: usize,
+        ny: usize,
+    ) -> (
+        std::ops::RangeInclusive<usize>,
+        std::ops::RangeInclusive<usize>,
+    ) {
+        let c = |v: f64, n: usize| cell_of(v, cell, n);
+        let [x0, y0, x1, y1] = self.bbox;
+        let r = self.reach;
+        (c(x0 - r, nx)..=c(x1 + r, nx), c(y0 - r, ny)..=c(y1 + r, ny))
+    }
+
+    /// How many cells [`Group::cells`] holds.
+    fn cell_count(&self, cell: f64, nx: usize, ny: usize) -> usize {
+        let (xs, ys) = self.cells(cell, nx, ny);
+        (xs.end() + 1 - xs.start()) * (ys.end() + 1 - ys.start())
+    }
+}
+
 impl FarWanted {
     /// Side of a cell, in painted pixels; the radius is one cell.
     pub const CELL: i32 = 32;
@@ -603,8 +628,8 @@ impl FarWanted {
         // long (many edges reaching far: coarser boxes, fewer of them).
         (0..4).find_map(|k| {
             let side = Self::GROUP * (1 << k) as f64 * g.unit.max(1) as f64;
-            let groups = Self::groups(g, reach2, cell, side);
-            let (start, list) = Self::lists(&groups, cell, nx, ny)?;
+            let groups = Self::groups(g, reach2, cell, side, nx, ny)?;
+            let (start, list) = Self::lists(&groups, cell, nx, ny);
             Some(FarWanted {
                 radius: cell,
                 cell,
@@ -630,14 +655,28 @@ impl FarWanted {
     }
 
     /// The listed edges of `g` (reach plus length past `radius`) grouped
-    /// by the `side` px square their middle lies in.
-    fn groups(g: &Geometry, reach2: &[f64], radius: f64, side: f64) -> Vec<Group> {
+    /// by the `side` px square their middle lies in; `None` as soon as the
+    /// groups found so far would list more than [`FarWanted::MOST`] entries
+    /// per cell of `radius` px (`nx` by `ny`) on average. A group's cells
+    /// only grow as edges join it, so the count so far is a lower bound of
+    /// what [`FarWanted::lists`] would count: where every edge reaches far
+    /// (wall noise's form factors at a unit of radiosity), the first few
+    /// hundred edges say so, instead of a pass over all of them per try.
+    fn groups(
+        g: &Geometry,
+        reach2: &[f64],
+        radius: f64,
+        side: f64,
+        nx: usize,
+        ny: usize,
+    ) -> Option<Vec<Group>> {
         let (bx, by) = (
             (g.width as f64 / side).ceil().max(1.0) as usize,
             (g.height as f64 / side).ceil().max(1.0) as usize,
         );
         let mut of_square: Vec<u32> = vec![u32::MAX; bx * by];
         let mut groups: Vec<Group> = Vec::new();
+        let (mut entries, budget) = (0usize, Self::MOST * nx * ny);
         for (e, &r2) in g.edges.iter().zip(reach2) {
             if !Self::listed(e, r2, radius) {
                 continue;
@@ -648,12 +687,15 @@ impl FarWanted {
             let reach = r2.sqrt() + 1.0;
             if of_square[b] == u32::MAX {
                 of_square[b] = groups.len() as u32;
-                groups.push(Group {
+                let gr = Group {
                     bbox: [x0, y0, x1, y1],
                     reach,
-                });
+                };
+                entries += gr.cell_count(radius, nx, ny);
+                groups.push(gr);
             } else {
                 let gr = &mut groups[of_square[b] as usize];
+                entries -= gr.cell_count(radius, nx, ny);
                 gr.bbox = [
                     gr.bbox[0].min(x0),
                     gr.bbox[1].min(y0),
@@ -661,30 +703,24 @@ impl FarWanted {
                     gr.bbox[3].max(y1),
                 ];
                 gr.reach = gr.reach.max(reach);
+                entries += gr.cell_count(radius, nx, ny);
             }
-        }
-        groups
-    }
-
-    /// Per cell of `cell` px (`nx` by `ny`), the groups whose reach has
-    /// points in it (CSR starts and list); `None` when the lists would
-    /// hold more than [`FarWanted::MOST`] entries per cell on average.
-    fn lists(groups: &[Group], cell: f64, nx: usize, ny: usize) -> Option<(Vec<u32>, Vec<u32>)> {
-        // The cells whose points a group may reach.
-        let cells = |gr: &Group| {
-            let c = |v: f64, n: usize| cell_of(v, cell, n);
-            let [x0, y0, x1, y1] = gr.bbox;
-            let r = gr.reach;
-            (c(x0 - r, nx)..=c(x1 + r, nx), c(y0 - r, ny)..=c(y1 + r, ny))
-        };
-        let mut start = vec![0u32; nx * ny + 1];
-        let (mut entries, budget) = (0usize, Self::MOST * nx * ny);
-        for gr in groups {
-            let (xs, ys) = cells(gr);
-            entries += xs.clone().count() * ys.clone().count();
             if entries > budget {
                 return None;
             }
+        }
+        Some(groups)
+    }
+
+    /// Per cell of `cell` px (`nx` by `ny`), the groups whose reach has
+    /// points in it (CSR starts and list).
+    fn lists(groups: &[Group], cell: f64, nx: usize, ny: usize) -> (Vec<u32>, Vec<u32>) {
+        let cells = |gr: &Group| gr.cells(cell, nx, ny);
+        let mut start = vec![0u32; nx * ny + 1];
+        let mut entries = 0;
+        for gr in groups {
+            let (xs, ys) = cells(gr);
+            entries += gr.cell_count(cell, nx, ny);
             for y in ys {
                 for x in xs.clone() {
                     start[y * nx + x + 1] += 1;
@@ -706,7 +742,7 @@ impl FarWanted {
                 }
             }
         }
-        Some((start, list))
+        (start, list)
     }
 
     /// The groups listed under the cell of `p`.
