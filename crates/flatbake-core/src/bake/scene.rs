@@ -4,6 +4,8 @@
 //! Later stages never look at the level's materials again: what a patch
 //! emits and reflects is in [`Scene`], per channel.
 
+use rayon::prelude::*;
+
 use crate::geometry::{self, Geometry};
 use crate::level::Level;
 use crate::level::material::MaterialKind;
@@ -50,16 +52,21 @@ impl Scene {
         for e in edges {
             used[e.material as usize] = true;
         }
+        // Read out per patch on the workers: on wall noise (180,000
+        // patches) this took 11 ms on one core.
         let mat = |p: usize| &level.materials[edges[patches.edge[p] as usize].material as usize];
-        let rho = std::array::from_fn(|c| (0..np).map(|p| mat(p).reflectance[c]).collect());
-        let emit = std::array::from_fn(|c| (0..np).map(|p| mat(p).emission[c]).collect());
+        let per_patch =
+            |f: &(dyn Fn(usize) -> f64 + Sync)| (0..np).into_par_iter().map(f).collect();
+        let rho = std::array::from_fn(|c| per_patch(&|p| mat(p).reflectance[c]));
+        let emit = std::array::from_fn(|c| per_patch(&|p| mat(p).emission[c]));
         let edge_emit = std::array::from_fn(|c| {
             edges
-                .iter()
+                .par_iter()
                 .map(|e| level.materials[e.material as usize].emission[c])
                 .collect()
         });
         let emitter_patch = (0..np)
+            .into_par_iter()
             .map(|p| mat(p).kind == MaterialKind::Emitter)
             .collect();
         Scene {

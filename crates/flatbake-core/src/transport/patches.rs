@@ -4,6 +4,7 @@
 
 use std::ops::Range;
 
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::geometry::{Edge, Geometry, Normal};
@@ -39,16 +40,19 @@ impl Patches {
         geometry: &Geometry,
         patch_len: f64,
         per_clearance: Option<f64>,
-        keep: impl Fn(usize) -> bool,
+        keep: impl Fn(usize) -> bool + Sync,
     ) -> Patches {
-        let mut first = Vec::with_capacity(geometry.edges.len() + 1);
-        let mut step = Vec::with_capacity(geometry.edges.len());
-        let mut edge = Vec::new();
-        let mut spread = Vec::with_capacity(geometry.edges.len());
-        first.push(0);
-        for (i, e) in geometry.edges.iter().enumerate() {
-            let len = e.len();
-            let (n, over) = if keep(i) {
+        // Per edge, its patch count and spread, found on the workers (the
+        // clearances read the level around each edge).
+        let cut: Vec<(usize, f64)> = geometry
+            .edges
+            .par_iter()
+            .enumerate()
+            .map(|(i, e)| {
+                if !keep(i) {
+                    return (0, patch_len);
+                }
+                let len = e.len();
                 let longest = match per_clearance {
                     // Clearances past patch_len / k cannot shorten a patch.
                     Some(k) if k < patch_len => {
@@ -63,10 +67,15 @@ impl Patches {
                 // walls a pixel or two away varies steeply along them.
                 let keeps_all = longest < patch_len || concave_end(geometry, e);
                 (n, if keeps_all { len / n as f64 } else { patch_len })
-            } else {
-                (0, patch_len)
-            };
-            step.push(len / n as f64);
+            })
+            .collect();
+        let mut first = Vec::with_capacity(geometry.edges.len() + 1);
+        let mut step = Vec::with_capacity(geometry.edges.len());
+        let mut edge = Vec::new();
+        let mut spread = Vec::with_capacity(geometry.edges.len());
+        first.push(0);
+        for (i, (e, &(n, over))) in geometry.edges.iter().zip(&cut).enumerate() {
+            step.push(e.len() / n as f64);
             spread.push(over);
             edge.extend(std::iter::repeat_n(i as u32, n));
             first.push(edge.len() as u32);
