@@ -5,6 +5,8 @@
 use std::cell::RefCell;
 use std::sync::OnceLock;
 
+use rayon::prelude::*;
+
 use crate::geometry::Geometry;
 use crate::visibility::{
     Blocks, Reachable, Reaches, Rect, Span, Sweeper, TileTree, View, Viewpoint, Wanted,
@@ -58,12 +60,21 @@ impl PointGrid {
         }
         // Within a leaf, rows alternate direction, so that each point is a
         // neighbour of the one before (the sweep reuses its event order).
+        // (Leaf by leaf on the workers: the gather's 180,000 points on
+        // wall noise took 8 ms on one core.)
+        let mut by_leaf: Vec<&mut [u32]> = Vec::with_capacity(leaves);
+        let mut rest = order.as_mut_slice();
         for l in 0..leaves {
-            order[start[l]..start[l + 1]].sort_by_key(|&i| {
+            let (this, after) = rest.split_at_mut(start[l + 1] - start[l]);
+            by_leaf.push(this);
+            rest = after;
+        }
+        by_leaf.into_par_iter().for_each(|points| {
+            points.sort_by_key(|&i| {
                 let p = pixels[i as usize];
                 (p[1], if p[1] % 2 == 0 { p[0] } else { -p[0] })
-            });
-        }
+            })
+        });
         PointGrid {
             leaves_x,
             leaves_y,
