@@ -389,6 +389,9 @@ pub fn bake_with_progress(
     // The estimate's sample of the form factors' points and the form
     // factors query through the same structures: built once.
     let structures = Structures::new(&scene.geometry);
+    if plan.needs_form_factors() {
+        structures.prepare(false);
+    }
     let memory = MemoryEstimate::new(&ctx, &scene, &plan, &structures);
     if let Some(limit) = settings.max_memory
         && memory.bytes > limit

@@ -550,13 +550,20 @@ pub fn gather_with_moments(
         coarse,
         directional,
     } = *options;
-    let tree = PatchTree::new(
-        &geometry.edges,
-        patches,
-        rad,
-        decide.clone(),
-        falloff,
-        tolerance,
+    // The patches' tree and the visibility's structures side by side.
+    let structures = Structures::new(geometry);
+    let (tree, ()) = rayon::join(
+        || {
+            PatchTree::new(
+                &geometry.edges,
+                patches,
+                rad,
+                decide.clone(),
+                falloff,
+                tolerance,
+            )
+        },
+        || structures.prepare(true),
     );
     let light = Lighting {
         edges: &geometry.edges,
@@ -569,7 +576,6 @@ pub fn gather_with_moments(
     // Edges with light, each within its reach.
     let reach2 = wanted_reach(reach, |e| rad.edge_emits[e] || rad.edge_reflects[e]);
     let tally = Tally::new(progress, pixels.len());
-    let structures = Structures::new(geometry);
     let exact = Exact {
         geometry,
         structures: &structures,

@@ -109,13 +109,16 @@ impl PatchTree {
             levels: Vec::with_capacity(2 * edges.len()),
             edge_levels: vec![0],
         };
+        // Each edge's level starts, in one buffer for every edge.
+        let mut starts = Vec::new();
         for (ei, e) in edges.iter().enumerate() {
             let (lo, hi) = e.extent();
             let h = patches.step[ei];
             let range = patches.of_edge(ei);
             let first = range.start;
             let n = range.len();
-            let mut starts = vec![t.mid.len() as u32];
+            starts.clear();
+            starts.push(t.mid.len() as u32);
             if !rad.edge_reflects[ei] {
                 // Never walked: one empty level keeps the indexing uniform.
                 starts.push(t.mid.len() as u32);

@@ -151,6 +151,13 @@ impl<'g> Structures<'g> {
     fn blocks(&self) -> &Blocks<'g> {
         self.blocks.get_or_init(|| Blocks::new(self.geometry))
     }
+
+    /// Builds the tile tree (for pixel centres with `centres`) and the
+    /// blocks now, side by side, instead of one after the other on the
+    /// first query (on wall noise at 512 px, 10 ms each on one core).
+    pub fn prepare(&self, centres: bool) {
+        rayon::join(|| self.tree(centres), || self.blocks());
+    }
 }
 
 thread_local! {
