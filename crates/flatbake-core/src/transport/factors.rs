@@ -152,11 +152,13 @@ impl FormFactors {
         }
         let (row_ptr, col) = (raw.row_ptr.to_vec(), Arc::clone(raw.col));
         drop(cursor);
-        let dlen = (0..n)
-            .map(|i| {
+        let dlen = coverage
+            .par_iter_mut()
+            .enumerate()
+            .map(|(i, coverage)| {
                 let s: f64 = val[row_ptr[i]..row_ptr[i + 1]].iter().sum();
-                if coverage[i] > 0.0 && s > 0.0 {
-                    s / coverage[i]
+                if *coverage > 0.0 && s > 0.0 {
+                    s / *coverage
                 } else {
                     // A patch whose own row is empty (every pair culled by
                     // the falloff reach) can still be in other patches' rows,
@@ -164,7 +166,7 @@ impl FormFactors {
                     // is then that row's sum, not 0: otherwise the light it
                     // sends is counted as escaped as well as received, and
                     // emitted != absorbed + escaped.
-                    coverage[i] = s / len[i];
+                    *coverage = s / len[i];
                     len[i]
                 }
             })
