@@ -550,9 +550,13 @@ pub fn gather_with_moments(
         coarse,
         directional,
     } = *options;
-    // The patches' tree and the visibility's structures side by side.
+    // Edges with light, each within its reach.
+    let reach2 = wanted_reach(reach, |e| rad.edge_emits[e] || rad.edge_reflects[e]);
+    let reaches = Reaches::new(&reach2);
+    // The patches' tree, the visibility's structures and the far
+    // directions side by side.
     let structures = Structures::new(geometry);
-    let (tree, ()) = rayon::join(
+    let (tree, ((), ())) = rayon::join(
         || {
             PatchTree::new(
                 &geometry.edges,
@@ -563,7 +567,7 @@ pub fn gather_with_moments(
                 tolerance,
             )
         },
-        || structures.prepare(true),
+        || rayon::join(|| structures.prepare(true), || reaches.prepare(geometry)),
     );
     let light = Lighting {
         edges: &geometry.edges,
@@ -573,15 +577,13 @@ pub fn gather_with_moments(
         falloff,
         kernel,
     };
-    // Edges with light, each within its reach.
-    let reach2 = wanted_reach(reach, |e| rad.edge_emits[e] || rad.edge_reflects[e]);
     let tally = Tally::new(progress, pixels.len());
     let exact = Exact {
         geometry,
         structures: &structures,
         light: &light,
         reach_max: reach.max,
-        reaches: Reaches::new(&reach2),
+        reaches,
         tally: &tally,
         directional: directional && kernel == Kernel::Flatland,
     };

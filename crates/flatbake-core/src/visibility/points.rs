@@ -35,8 +35,8 @@ impl PointGrid {
         let leaves_y = height.div_ceil(leaf);
         let leaves = leaves_x * leaves_y;
         let mut start = vec![0usize; leaves + 1];
-        // Each point's leaf, found on the workers (two divisions a point:
-        // half of this on one core for wall noise's 500,000 points).
+        // Each point's leaf, found on the workers (two divisions a point;
+        // wall noise's form factors have 500,000 points).
         let leaf_of: Vec<u32> = pixels
             .par_iter()
             .map(|p| ((p[1] as usize / leaf) * leaves_x + p[0] as usize / leaf) as u32)
@@ -65,8 +65,8 @@ impl PointGrid {
         drop(leaf_of);
         // Within a leaf, rows alternate direction, so that each point is a
         // neighbour of the one before (the sweep reuses its event order).
-        // (Leaf by leaf on the workers: the gather's 180,000 points on
-        // wall noise took 8 ms on one core.)
+        // (Leaf by leaf on the workers: several ms on one core for the
+        // points of wall noise.)
         let mut by_leaf: Vec<&mut [u32]> = Vec::with_capacity(leaves);
         let mut rest = order.as_mut_slice();
         for l in 0..leaves {
@@ -159,7 +159,7 @@ impl<'g> Structures<'g> {
 
     /// Builds the tile tree (for pixel centres with `centres`) and the
     /// blocks now, side by side, instead of one after the other on the
-    /// first query (on wall noise at 512 px, 10 ms each on one core).
+    /// first query (several ms each on one core for wall noise at 512 px).
     pub fn prepare(&self, centres: bool) {
         rayon::join(|| self.tree(centres), || self.blocks());
     }
