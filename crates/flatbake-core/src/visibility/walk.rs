@@ -717,10 +717,8 @@ impl FarWanted {
     fn lists(groups: &[Group], cell: f64, nx: usize, ny: usize) -> (Vec<u32>, Vec<u32>) {
         let cells = |gr: &Group| gr.cells(cell, nx, ny);
         let mut start = vec![0u32; nx * ny + 1];
-        let mut entries = 0;
         for gr in groups {
             let (xs, ys) = cells(gr);
-            entries += gr.cell_count(cell, nx, ny);
             for y in ys {
                 for x in xs.clone() {
                     start[y * nx + x + 1] += 1;
@@ -731,7 +729,7 @@ impl FarWanted {
             start[i + 1] += start[i];
         }
         let mut fill = start.clone();
-        let mut list = vec![0u32; entries];
+        let mut list = vec![0u32; start[nx * ny] as usize];
         for (gi, gr) in groups.iter().enumerate() {
             let (xs, ys) = cells(gr);
             for y in ys {
