@@ -24,7 +24,10 @@
 //!   noise, corridors, dots, the 8192 px benchmark) baked by the binary at
 //!   `normal`, and the real maps at `draft` too. Each row gives s / Mpx and
 //!   its ratio to the 512 px benchmark's s / Mpx measured at the start of the
-//!   same run, peak memory per pixel, and the gather's share of the bake. A
+//!   same run, and to the mean of the benchmark baked once just before and
+//!   once just after the row (on a shared machine whose speed drifts within a
+//!   run, the nearby ratio is the steadier one), peak memory per pixel, and
+//!   the gather's share of the bake. A
 //!   bake that is refused (too much memory), killed or times out is a row
 //!   saying so.
 //!
@@ -330,11 +333,11 @@ fn print_load(when: &str) {
 /// Seconds per megapixel of the 512 px benchmark (best of three, whole
 /// process) with each of `bakers` (NaN for one that cannot bake it): the
 /// yardstick every class is compared with.
-fn bench_s_per_mpx(dir: &Path, bakers: &[&Baker]) -> anyhow::Result<Vec<f64>> {
+fn bench_s_per_mpx(dir: &Path, bakers: &[&Baker], rounds: usize) -> anyhow::Result<Vec<f64>> {
     let level = synth::bench_obstacles(512, 60, 12, 7);
     level.save(dir)?;
     let mut best = vec![f64::INFINITY; bakers.len()];
-    for _ in 0..3 {
+    for _ in 0..rounds {
         for (b, baker) in best.iter_mut().zip(bakers) {
             match baker.bake_saved(dir, &level.name, "normal")? {
                 Outcome::Baked(r) => *b = b.min(r.wall),
@@ -379,10 +382,10 @@ fn classes_table(
         .collect();
     let mut bakers = vec![after];
     bakers.extend(before);
-    let bench = bench_s_per_mpx(dir, &bakers)?;
+    let bench = bench_s_per_mpx(dir, &bakers, 3)?;
     println!("\n### Level classes (whole process, `flatbake bake`)\n");
     println!(
-        "Benchmark (512 px, 60 obstacles, normal, best of 3) in this run: {:.3} s / Mpx{}. `x bench` is a level's s / Mpx over that; `gather` the gather's share of the bake time; timeout {:.0} s per bake.\n",
+        "Benchmark (512 px, 60 obstacles, normal, best of 3) in this run: {:.3} s / Mpx{}. `x bench` is a level's s / Mpx over that; `x bench nearby` over the mean of the benchmark baked once just before the level's row and once just after it (a shared machine's speed drifts over a run); `gather` the gather's share of the bake time; timeout {:.0} s per bake.\n",
         bench[0],
         before.map_or(String::new(), |_| format!(
             " ({:.3} s / Mpx with the before binary)",
@@ -391,10 +394,13 @@ fn classes_table(
         after.timeout
     );
     println!(
-        "| level | class | size | quality | edges | patches | wall s | CPU s | s / Mpx | x bench | peak MB | B / px | gather |"
+        "| level | class | size | quality | edges | patches | wall s | CPU s | s / Mpx | x bench | x bench nearby | peak MB | B / px | gather |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     let mut rows = Vec::new();
+    // The benchmark baked once between rows, by the binary under test: each
+    // row's ratio is also taken against the two around it.
+    let mut bench_before_row = bench_s_per_mpx(dir, &[after], 1)?[0];
     for c in &classes {
         let p = &c.level;
         p.save(dir)?;
@@ -417,6 +423,9 @@ fn classes_table(
                 None => None,
             };
             let a = after.bake_saved(dir, &p.name, q)?;
+            let bench_after_row = bench_s_per_mpx(dir, &[after], 1)?[0];
+            let nearby = 0.5 * (bench_before_row + bench_after_row);
+            bench_before_row = bench_after_row;
             let size = format!("{}x{}", p.width, p.height);
             let head = format!("| {} | {} | {size} | {q} |", p.name, c.label);
             match &a {
@@ -424,13 +433,14 @@ fn classes_table(
                     let mpx = px as f64 / 1e6;
                     let total = stage(r, "total");
                     println!(
-                        "{head} {} | {} | {:.2} | {} | {:.2} | {:.1} | {} | {} | {:.0}% |",
+                        "{head} {} | {} | {:.2} | {} | {:.2} | {:.1} | {:.2} | {} | {} | {:.0}% |",
                         count(r, "edges"),
                         count(r, "patches"),
                         r.wall,
                         r.cpu.map_or("n/a".into(), |c| format!("{c:.2}")),
                         r.wall / mpx,
                         r.wall / mpx / bench[0],
+                        r.wall / mpx / nearby,
                         r.peak_mb.map_or("n/a".into(), |m| format!("{m:.0}")),
                         r.peak_mb.map_or("n/a".into(), |m| format!(
                             "{:.0}",
@@ -440,7 +450,7 @@ fn classes_table(
                     );
                 }
                 other => println!(
-                    "{head} {} | - | {} | - | - | - | - | - | - |",
+                    "{head} {} | - | {} | - | - | - | - | - | - | - |",
                     traced.map_or("-".into(), |e| e.to_string()),
                     other.why()
                 ),
