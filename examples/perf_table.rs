@@ -27,9 +27,8 @@
 //!   same run, and to the mean of the benchmark baked once just before and
 //!   once just after the row (on a shared machine whose speed drifts within a
 //!   run, the nearby ratio is the steadier one), peak memory per pixel, and
-//!   the gather's share of the bake. A
-//!   bake that is refused (too much memory), killed or times out is a row
-//!   saying so.
+//!   the gather's share of the bake. A bake that is refused (too much
+//!   memory), killed or times out is a row saying so.
 //!
 //! `--quick` stops the size table at 512, skips the 128 px naive runs and the
 //! classes above 1 Mpx. `--classes` prints only the classes table;
@@ -330,7 +329,7 @@ fn print_load(when: &str) {
     );
 }
 
-/// Seconds per megapixel of the 512 px benchmark (best of three, whole
+/// Seconds per megapixel of the 512 px benchmark (best of `rounds`, whole
 /// process) with each of `bakers` (NaN for one that cannot bake it): the
 /// yardstick every class is compared with.
 fn bench_s_per_mpx(dir: &Path, bakers: &[&Baker], rounds: usize) -> anyhow::Result<Vec<f64>> {
