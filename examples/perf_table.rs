@@ -329,16 +329,28 @@ fn print_load(when: &str) {
     );
 }
 
-/// Seconds per megapixel of the 512 px benchmark (best of `rounds`, whole
-/// process) with each of `bakers` (NaN for one that cannot bake it): the
-/// yardstick every class is compared with.
-fn bench_s_per_mpx(dir: &Path, bakers: &[&Baker], rounds: usize) -> anyhow::Result<Vec<f64>> {
+/// Saves the 512 px benchmark in `dir`, for [`bench_s_per_mpx`]; returns
+/// its name.
+fn save_bench(dir: &Path) -> anyhow::Result<String> {
     let level = synth::bench_obstacles(512, 60, 12, 7);
     level.save(dir)?;
+    Ok(level.name)
+}
+
+/// Seconds per megapixel of the 512 px benchmark `name`, saved in `dir`
+/// ([`save_bench`]) (best of `rounds`, whole process) with each of
+/// `bakers` (NaN for one that cannot bake it): the yardstick every class
+/// is compared with.
+fn bench_s_per_mpx(
+    dir: &Path,
+    name: &str,
+    bakers: &[&Baker],
+    rounds: usize,
+) -> anyhow::Result<Vec<f64>> {
     let mut best = vec![f64::INFINITY; bakers.len()];
     for _ in 0..rounds {
         for (b, baker) in best.iter_mut().zip(bakers) {
-            match baker.bake_saved(dir, &level.name, "normal")? {
+            match baker.bake_saved(dir, name, "normal")? {
                 Outcome::Baked(r) => *b = b.min(r.wall),
                 other => {
                     println!(
@@ -381,7 +393,9 @@ fn classes_table(
         .collect();
     let mut bakers = vec![after];
     bakers.extend(before);
-    let bench = bench_s_per_mpx(dir, &bakers, 3)?;
+    // Saved once: the benchmark is baked again beside every row.
+    let bench_name = save_bench(dir)?;
+    let bench = bench_s_per_mpx(dir, &bench_name, &bakers, 3)?;
     println!("\n### Level classes (whole process, `flatbake bake`)\n");
     println!(
         "Benchmark (512 px, 60 obstacles, normal, best of 3) in this run: {:.3} s / Mpx{}. `x bench` is a level's s / Mpx over that; `x bench nearby` over the mean of the benchmark baked once just before the level's row and once just after it (a shared machine's speed drifts over a run); `gather` the gather's share of the bake time; timeout {:.0} s per bake.\n",
@@ -399,7 +413,7 @@ fn classes_table(
     let mut rows = Vec::new();
     // The benchmark baked once between rows, by the binary under test: each
     // row's ratio is also taken against the two around it.
-    let mut bench_before_row = bench_s_per_mpx(dir, &[after], 1)?[0];
+    let mut bench_before_row = bench_s_per_mpx(dir, &bench_name, &[after], 1)?[0];
     for c in &classes {
         let p = &c.level;
         p.save(dir)?;
@@ -422,7 +436,7 @@ fn classes_table(
                 None => None,
             };
             let a = after.bake_saved(dir, &p.name, q)?;
-            let bench_after_row = bench_s_per_mpx(dir, &[after], 1)?[0];
+            let bench_after_row = bench_s_per_mpx(dir, &bench_name, &[after], 1)?[0];
             let nearby = 0.5 * (bench_before_row + bench_after_row);
             bench_before_row = bench_after_row;
             let size = format!("{}x{}", p.width, p.height);
