@@ -1015,6 +1015,7 @@ fn curved_reflected_light_matches_a_quadrature_of_the_patches() {
             anchors: None,
             sweep_every: false,
             coarse: false,
+            far: None,
             directional: true,
         };
         let got = gather_with_moments(&g, &patches, &rad, &pixels, &options);

@@ -75,6 +75,16 @@ pub struct Knobs {
     /// blurred over the two pixels.
     #[serde(default)]
     pub coarse: bool,
+    /// Block sweeps' far reflected light: a swept pixel takes the light
+    /// that walls reflect to it from beyond this many pixels from the
+    /// anchors at its block's corners, interpolated, and sweeps only the
+    /// edges that can matter otherwise (those within this distance of its
+    /// block, the lights, and what may hide a light from it), where that
+    /// leaves out enough of its list ([`crate::gather::GatherOptions::far`]).
+    /// Direct light stays exact. `None`: every swept pixel sweeps its
+    /// whole list.
+    #[serde(default)]
+    pub far: Option<f64>,
 }
 
 /// The lattice tolerance of `draft` (see [`Knobs::lattice`]).
@@ -88,6 +98,16 @@ pub const NORMAL_LATTICE: f64 = 0.01;
 /// ([`Knobs::coarse`]), anchors 4 px apart cost its real maps 5-10 % more
 /// time at the same error.
 pub const DRAFT_ANCHORS: i32 = 8;
+
+/// The distance beyond which `normal` takes a swept pixel's reflected
+/// light from its block's corners (see [`Knobs::far`]). Measured on the
+/// pillar field at 512 px: 32.8 -> 17.3 s, 0.30 % relative RMS from the
+/// exact `normal` gather (0.57 % with 16 px, for 16.7 s).
+pub const NORMAL_FAR: f64 = 32.0;
+
+/// `draft`'s [`Knobs::far`]: on the shooter map 0.95 % from the exact
+/// `draft` gather, against 0.44 % with 32 px, for 4 % less time.
+pub const DRAFT_FAR: f64 = 16.0;
 
 impl Quality {
     /// Every preset, cheapest first.
@@ -111,6 +131,7 @@ impl Quality {
                 anchors: Some(DRAFT_ANCHORS),
                 sweep_every: true,
                 coarse: true,
+                far: Some(DRAFT_FAR),
             },
             Quality::Normal => Knobs {
                 patch_len: 4.0,
@@ -122,6 +143,7 @@ impl Quality {
                 anchors: Some(crate::gather::lattice::ANCHOR),
                 sweep_every: false,
                 coarse: false,
+                far: Some(NORMAL_FAR),
             },
             Quality::High => Knobs {
                 patch_len: 2.0,
@@ -133,6 +155,7 @@ impl Quality {
                 anchors: None,
                 sweep_every: false,
                 coarse: false,
+                far: None,
             },
             Quality::Reference => Knobs {
                 patch_len: 0.5,
@@ -144,6 +167,7 @@ impl Quality {
                 anchors: None,
                 sweep_every: false,
                 coarse: false,
+                far: None,
             },
         }
     }

@@ -157,6 +157,7 @@ fn run(
                 anchors: settings.knobs.anchors.filter(|_| !settings.exhaustive),
                 sweep_every: settings.knobs.sweep_every,
                 coarse: settings.knobs.coarse,
+                far: settings.knobs.far.filter(|_| !settings.exhaustive),
                 directional: settings.directional,
             };
             let gather::Gather {
@@ -204,6 +205,18 @@ fn run(
                         if every { "" } else { " and of the ring around it" },
                         gather::lattice::NEAR,
                         if every { "" } else { " that would walk the level" },
+                    ),
+                );
+            }
+            if counts.far > 0 {
+                log.skip(
+                    "far reflected light",
+                    format!(
+                        "{} of those {} swept pixels took the light that walls reflect to them from more than {} px away from the anchors at their block's corners, interpolated, and swept only the lights, the edges within {} px and what may hide a light (their direct light exact)",
+                        counts.far,
+                        counts.local,
+                        options.far.unwrap_or(0.0),
+                        options.far.unwrap_or(0.0),
                     ),
                 );
             }

@@ -34,6 +34,10 @@ pub struct GatherCounts {
     /// their block see ([`super::lattice::ANCHOR`]) instead of a full
     /// visibility query.
     pub local: u64,
+    /// Of those, the pixels whose reflected light from beyond
+    /// [`GatherOptions::far`] was interpolated between their block's
+    /// corners.
+    pub far: u64,
 }
 
 impl std::ops::AddAssign for GatherCounts {
@@ -43,6 +47,7 @@ impl std::ops::AddAssign for GatherCounts {
         self.interpolated += o.interpolated;
         self.untested += o.untested;
         self.local += o.local;
+        self.far += o.far;
     }
 }
 
@@ -69,6 +74,9 @@ pub struct PixelScratch {
     pieces: Vec<PieceAt>,
     /// The patch trees as cut for the current tile.
     cuts: TileCuts,
+    /// After [`pixel_light_part`] with a distance: the angle (radians) that
+    /// the spans' points within it cover, as seen from the pixel.
+    pub(super) near_angle: f64,
 }
 
 impl PixelScratch {
@@ -152,6 +160,14 @@ pub struct GatherOptions<'a> {
     /// Also compute the first circular moments of every pixel's light
     /// (`gather/directional.rs`; the flatland kernel only). Default off.
     pub directional: bool,
+    /// Block sweeps' far reflected light (docs/transport.md, Far reflected
+    /// light): a swept pixel takes the light that walls reflect to it from
+    /// beyond this many pixels from the anchors at its block's corners,
+    /// interpolated, and sweeps only the edges within this distance of its
+    /// block, the lights, and the edges that may hide a light from some
+    /// pixel of the block, where that leaves out enough of its list. Direct
+    /// light stays exact. `None` (and with moments): the whole list.
+    pub far: Option<f64>,
 }
 
 /// What [`gather_with_moments`] returns.
@@ -228,6 +244,41 @@ pub fn pixel_light(
     acc: &mut [f64],
     scratch: &mut PixelScratch,
 ) -> GatherCounts {
+    pixel_light_part(light, p, spans, acc, scratch, Part::All)
+}
+
+/// Which of a pixel's light [`pixel_light_part`] adds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum Part {
+    /// All of it.
+    All,
+    /// The direct light, and the light reflected from points of edges
+    /// within this distance of the pixel.
+    Near(f64),
+    /// The light reflected from points of edges beyond this distance.
+    Far(f64),
+}
+
+/// Where along an edge seen from `p` (axis coordinate, with `p`'s foot at
+/// `foot` and `p` at `d` in front of its line) the points within `r` of `p`
+/// lie: `foot - w` to `foot + w`, or none (`None`) if the line is as far.
+fn within(r: f64, d: f64, foot: f64) -> Option<(f64, f64)> {
+    let d = d.abs();
+    (d < r).then(|| {
+        let w = (r * r - d * d).sqrt();
+        (foot - w, foot + w)
+    })
+}
+
+/// [`pixel_light`], of the part of the light that `part` says.
+pub(super) fn pixel_light_part(
+    light: &Lighting,
+    p: [f64; 2],
+    spans: &[Span],
+    acc: &mut [f64],
+    scratch: &mut PixelScratch,
+    part: Part,
+) -> GatherCounts {
     let Lighting {
         edges,
         patches,
@@ -245,9 +296,25 @@ pub fn pixel_light(
     sc.pts.clear();
     sc.pieces.clear();
     sc.cuts.enter(tree, p, edges.len());
+    sc.near_angle = 0.0;
     for span in spans {
         let ei = span.edge as usize;
         let e = &edges[ei];
+        if let Part::Near(r) | Part::Far(r) = part {
+            // What the span's points within `r` hide of the farther light.
+            let d = e.front_distance(p);
+            let foot = if e.normal.is_vertical_edge() {
+                p[1]
+            } else {
+                p[0]
+            };
+            if let Some((a, b)) = within(r, d, foot) {
+                let (s0, s1) = (span.s0.max(a), span.s1.min(b));
+                if s0 < s1 && d > 0.0 {
+                    sc.near_angle += ((s1 - foot) / d).atan() - ((s0 - foot) / d).atan();
+                }
+            }
+        }
         if !(rad.edge_emits[ei] || rad.edge_reflects[ei]) {
             continue;
         }
@@ -262,14 +329,34 @@ pub fn pixel_light(
             p[0]
         };
         let line = GatherLine::new(d, falloff);
-        if rad.edge_emits[ei] {
+        if rad.edge_emits[ei] && !matches!(part, Part::Far(_)) {
             sc.em.line(&line);
             sc.em.push(span.s0 - foot);
             sc.em_end.push(span.s1 - foot);
             sc.em_edge.push(span.edge);
         }
         if rad.edge_reflects[ei] {
-            reflected_pieces(light, span, &line, foot, sc, &mut counts);
+            match part {
+                Part::All => reflected_pieces(light, span, &line, foot, sc, &mut counts),
+                Part::Near(r) => {
+                    if let Some((a, b)) = within(r, d, foot) {
+                        let (s0, s1) = (span.s0.max(a), span.s1.min(b));
+                        if s0 < s1 {
+                            let near = Span { s0, s1, ..*span };
+                            reflected_pieces(light, &near, &line, foot, sc, &mut counts);
+                        }
+                    }
+                }
+                Part::Far(r) => {
+                    let (a, b) = within(r, d, foot).unwrap_or((span.s1, span.s1));
+                    for (s0, s1) in [(span.s0, span.s1.min(a)), (span.s0.max(b), span.s1)] {
+                        if s0 < s1 {
+                            let far = Span { s0, s1, ..*span };
+                            reflected_pieces(light, &far, &line, foot, sc, &mut counts);
+                        }
+                    }
+                }
+            }
         }
     }
     let fall = falloff.is_some();
@@ -549,6 +636,7 @@ pub fn gather_with_moments(
         sweep_every,
         coarse,
         directional,
+        far,
     } = *options;
     // Edges with light, each within its reach.
     let reach2 = wanted_reach(reach, |e| rad.edge_emits[e] || rad.edge_reflects[e]);
@@ -586,6 +674,7 @@ pub fn gather_with_moments(
         reaches,
         tally: &tally,
         directional: directional && kernel == Kernel::Flatland,
+        far: far.filter(|_| !directional && kernel == Kernel::Flatland),
     };
     match (lattice, anchors) {
         (Some(relative), _) if kernel == Kernel::Flatland => {
@@ -629,6 +718,8 @@ pub(super) struct Exact<'a> {
     tally: &'a Tally<'a>,
     /// Also the moments ([`Pass::moments`]).
     pub directional: bool,
+    /// [`GatherOptions::far`] (never with moments).
+    pub far: Option<f64>,
 }
 
 /// What one exact pass over a list of pixels returned.

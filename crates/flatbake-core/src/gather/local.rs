@@ -27,7 +27,9 @@ use rayon::prelude::*;
 use crate::geometry::Geometry;
 use crate::visibility::{Span, Sweeper, View, Viewpoint, VisitStats, Wanted, centre};
 
-use super::fast::{Exact, GatherCounts, PixelScratch, pixel_light, signature};
+use super::fast::{
+    Exact, GatherCounts, Part, PixelScratch, pixel_light, pixel_light_part, signature,
+};
 use super::{Disjoint, PerThread};
 
 /// Spacing of the anchor pixels, in pixels, unless the preset sets it.
@@ -59,6 +61,10 @@ struct Buffers {
     spans: Vec<Span>,
     lit: Vec<Span>,
     list: Vec<u32>,
+    /// The part of `list` that a sweep with [`Exact::far`] keeps
+    /// ([`far_list`]), and the lights on the list, by loop.
+    kept: Vec<u32>,
+    lamps: Vec<(u32, Rect)>,
     scratch: PixelScratch,
     /// Per edge, the generation of the list it was last put on (lists are
     /// merged without sorting).
@@ -164,6 +170,10 @@ pub(super) struct Lists {
     /// Per anchor gathered by a full query (by index into the pixels):
     /// every edge it sees, lit or not, sorted.
     seen: std::collections::HashMap<usize, Vec<u32>>,
+    /// With [`Exact::far`], per anchor of `seen`: the light reflected to it
+    /// from beyond that distance, per component, then the angle open
+    /// beyond that distance (not covered by what it sees nearer).
+    far: std::collections::HashMap<usize, Vec<f64>>,
     /// Spacing of the anchors, in pixels.
     spacing: i32,
     /// Also the anchors of the ring around a block ([`Lists::new`]).
@@ -176,6 +186,9 @@ struct Group {
     /// top left corner of its own block (of `ANCHOR` or half that).
     block: [i32; 2],
     origin: [i32; 2],
+    /// Its own block's side; its first four anchors are that block's
+    /// corners, in the order (x0, y0), (x1, y0), (x0, y1), (x1, y1).
+    step: i32,
     anchors: Vec<usize>,
     pixels: Vec<usize>,
 }
@@ -192,6 +205,7 @@ impl Lists {
             spacing,
             ring,
             seen: Default::default(),
+            far: Default::default(),
         }
     }
 
@@ -274,6 +288,7 @@ impl Lists {
                     groups.push(Group {
                         block: [bx, by],
                         origin,
+                        step,
                         anchors: Vec::new(),
                         pixels: Vec::new(),
                     });
@@ -322,10 +337,14 @@ impl Lists {
         }
         // Anchors: a full query, keeping what each sees.
         let pts: Vec<[i32; 2]> = anchors.iter().map(|&i| pixels[i]).collect();
-        let (pass, seen, dropped) = run_recording(exact, &pts, signatures);
+        let (pass, seen, far, dropped) = run_recording(exact, &pts, signatures);
         for ((j, &i), list) in anchors.iter().enumerate().zip(seen) {
             store(&pass, j, i, k, &mut out);
             self.seen.insert(i, list);
+            if !far.is_empty() {
+                self.far
+                    .insert(i, far[j * (k + 1)..(j + 1) * (k + 1)].to_vec());
+            }
         }
         // (Progress: the wanted pixels that neither the full queries nor
         // the sweeps below count.)
@@ -427,7 +446,7 @@ impl Lists {
         let mut out = vec![0.0; total * k];
         let mut moments = vec![0.0; total * km];
         let mut sigs = vec![0u64; if signatures.is_some() { total } else { 0 }];
-        let mut merged = vec![[0u64; 3]; groups.len()];
+        let mut merged = vec![[0u64; 4]; groups.len()];
         {
             let shared = Disjoint::new(&mut out);
             let shared_moments = Disjoint::new(&mut moments);
@@ -464,7 +483,21 @@ impl Lists {
                     // so are its pieces in a sweep (where two that meet at
                     // its corner are taken as one silhouette).
                     b.list.sort_unstable();
-                    let mut tally = [0u64; 3];
+                    // With the far reflected light from the corners: the
+                    // edges that can matter otherwise, if few enough.
+                    let (o, step) = (gr.origin, gr.step);
+                    let rect = Rect {
+                        lo: [o[0] as f64 + 0.5, o[1] as f64 + 0.5],
+                        hi: [(o[0] + step) as f64 + 0.5, (o[1] + step) as f64 + 0.5],
+                    };
+                    let corners = exact.far.filter(|_| km == 0).and_then(|r| {
+                        let f = gr.anchors.get(..4)?.iter().map(|a| self.far.get(a));
+                        let f: Vec<&Vec<f64>> = f.collect::<Option<_>>()?;
+                        far_list(g, light.rad, &b.list, rect, r, &mut b.kept, &mut b.lamps)
+                            .then_some((r, f))
+                    });
+                    let list = if corners.is_some() { &b.kept } else { &b.list };
+                    let mut tally = [0u64; 4];
                     let mut acc = vec![0.0; k];
                     let mut m = vec![0.0; km];
                     for (j, &i) in gr.pixels.iter().enumerate() {
@@ -474,7 +507,7 @@ impl Lists {
                         b.spans.clear();
                         tally[2] += b.sweeper.sweep_wanted(
                             &g.edges,
-                            &b.list,
+                            list,
                             Viewpoint::new(p, View::Full, comp),
                             Some(Wanted {
                                 reach2: exact.reaches.squared,
@@ -484,7 +517,47 @@ impl Lists {
                             &mut b.spans,
                         );
                         acc.iter_mut().for_each(|a| *a = 0.0);
-                        let c = pixel_light(light, p, &b.spans, &mut acc, &mut b.scratch);
+                        let c = match &corners {
+                            None => pixel_light(light, p, &b.spans, &mut acc, &mut b.scratch),
+                            Some((r, f)) => {
+                                let part = Part::Near(*r);
+                                let c = pixel_light_part(
+                                    light,
+                                    p,
+                                    &b.spans,
+                                    &mut acc,
+                                    &mut b.scratch,
+                                    part,
+                                );
+                                // Bilinear between the corners, in their order:
+                                // (x0, y0), (x1, y0), (x0, y1), (x1, y1).
+                                let fx = (px[0] - o[0]) as f64 / step as f64;
+                                let fy = (px[1] - o[1]) as f64 / step as f64;
+                                let w = [
+                                    (1.0 - fx) * (1.0 - fy),
+                                    fx * (1.0 - fy),
+                                    (1.0 - fx) * fy,
+                                    fx * fy,
+                                ];
+                                // Scaled by the angle the pixel has open beyond
+                                // `r` against the corners': a wall beside it
+                                // hides more of the far light than they see
+                                // hidden.
+                                let at = |c: usize| (0..4).map(|q| w[q] * f[q][c]).sum::<f64>();
+                                let open = std::f64::consts::TAU - b.scratch.near_angle;
+                                let corners_open = at(k);
+                                let scale = if corners_open > 0.0 {
+                                    open / corners_open
+                                } else {
+                                    1.0
+                                };
+                                for (c, a) in acc.iter_mut().enumerate() {
+                                    *a += at(c) * scale;
+                                }
+                                tally[3] += 1;
+                                c
+                            }
+                        };
                         tally[0] += c.pieces;
                         tally[1] += c.patch_pieces;
                         let o = start[gi] + j;
@@ -520,6 +593,7 @@ impl Lists {
             counts.pieces += c[0];
             counts.patch_pieces += c[1];
             dropped += c[2];
+            counts.far += c[3];
         }
         counts.local = total as u64;
         (out, moments, sigs, (counts, dropped))
@@ -545,14 +619,16 @@ fn within_reach(exact: &Exact, p: [f64; 2], spans: &[Span], out: &mut Vec<Span>)
 }
 
 /// What [`Exact::run`] returns for `pixels`, with, per pixel, every edge it
-/// sees (lit or not, sorted), and the number of spans out of reach. The
-/// light is `Exact::run`'s: the query returns every visible span and those
-/// out of reach are left out here instead of in the query.
+/// sees (lit or not, sorted), with [`Exact::far`] the light reflected to it
+/// from beyond that distance (per pixel and component, else empty), and
+/// the number of spans out of reach. The light is `Exact::run`'s: the
+/// query returns every visible span and those out of reach are left out
+/// here instead of in the query.
 fn run_recording(
     exact: &Exact,
     pixels: &[[i32; 2]],
     signatures: Option<f64>,
-) -> (super::fast::Pass, Vec<Vec<u32>>, u64) {
+) -> (super::fast::Pass, Vec<Vec<u32>>, Vec<f64>, u64) {
     let (light, rad) = (exact.light, exact.light.rad);
     let k = rad.components;
     let km = if exact.directional { 2 * k } else { 0 };
@@ -567,10 +643,19 @@ fn run_recording(
         }
     ];
     let mut seen: Vec<Vec<u32>> = vec![Vec::new(); pixels.len()];
+    let mut far = vec![
+        0.0;
+        if exact.far.is_some() {
+            pixels.len() * (k + 1)
+        } else {
+            0
+        }
+    ];
     // Pieces, patch pieces and pairs beyond reach, summed per thread.
     let merged = PerThread::<3>::new();
     {
         let (shared, shared_sig) = (Disjoint::new(&mut out), Disjoint::new(&mut sigs));
+        let shared_far = Disjoint::new(&mut far);
         let shared_moments = Disjoint::new(&mut moments);
         let shared_seen = Disjoint::new(&mut seen);
         crate::visibility::for_each_visibility_counted(
@@ -590,6 +675,7 @@ fn run_recording(
                 edges.shrink_to_fit();
                 let mut acc = vec![0.0; k];
                 let mut m = vec![0.0; km];
+                let mut f = vec![0.0; if exact.far.is_some() { k + 1 } else { 0 }];
                 let (c, sig, dropped) = BUFFERS.with(|b| {
                     let b = &mut *b.borrow_mut();
                     let dropped = within_reach(exact, at, spans, &mut b.lit);
@@ -598,6 +684,13 @@ fn run_recording(
                         super::directional::pixel_moments(light, at, &b.lit, &b.scratch, &mut m);
                     }
                     let sig = signatures.map(|rel| signature(light, &b.lit, &b.scratch, &acc, rel));
+                    // (Last: it reuses the scratch that the moments and the
+                    // signature read.)
+                    if let Some(r) = exact.far {
+                        let part = Part::Far(r);
+                        pixel_light_part(light, at, &b.lit, &mut f[..k], &mut b.scratch, part);
+                        f[k] = std::f64::consts::TAU - b.scratch.near_angle;
+                    }
                     (c, sig, dropped)
                 });
                 merged.add([c.pieces, c.patch_pieces, dropped]);
@@ -609,6 +702,9 @@ fn run_recording(
                     }
                     for (c, &v) in m.iter().enumerate() {
                         shared_moments.write(i * km + c, v);
+                    }
+                    for (c, &v) in f.iter().enumerate() {
+                        shared_far.write(i * (k + 1) + c, v);
                     }
                     if let Some(h) = sig {
                         shared_sig.write(i, h);
@@ -630,7 +726,7 @@ fn run_recording(
         stats: VisitStats::default(),
         counts,
     };
-    (pass, seen, dropped)
+    (pass, seen, far, dropped)
 }
 
 /// Gathers every one of `pixels` as [`Lists::gather_walking`] does, with
@@ -677,4 +773,219 @@ fn exact_or_walks(
         Some(&|i| walks.lock().unwrap_or_else(|e| e.into_inner()).push(i)),
     );
     (pass, walks.into_inner().unwrap_or_else(|e| e.into_inner()))
+}
+
+/// An axis-aligned rectangle (`lo <= hi`).
+#[derive(Clone, Copy, Debug)]
+struct Rect {
+    lo: [f64; 2],
+    hi: [f64; 2],
+}
+
+impl Rect {
+    fn of_edge(e: &crate::geometry::Edge) -> Rect {
+        let (a, b) = (e.a.map(f64::from), e.b.map(f64::from));
+        Rect {
+            lo: [a[0].min(b[0]), a[1].min(b[1])],
+            hi: [a[0].max(b[0]), a[1].max(b[1])],
+        }
+    }
+
+    fn union(self, o: Rect) -> Rect {
+        Rect {
+            lo: [self.lo[0].min(o.lo[0]), self.lo[1].min(o.lo[1])],
+            hi: [self.hi[0].max(o.hi[0]), self.hi[1].max(o.hi[1])],
+        }
+    }
+
+    /// Squared distance between two rectangles.
+    fn distance_sq(self, o: Rect) -> f64 {
+        let dx = (o.lo[0] - self.hi[0]).max(self.lo[0] - o.hi[0]).max(0.0);
+        let dy = (o.lo[1] - self.hi[1]).max(self.lo[1] - o.hi[1]).max(0.0);
+        dx * dx + dy * dy
+    }
+}
+
+/// Whether segment `p q` may meet the convex hull of rectangles `a` and
+/// `b`: `false` only if a line separates them (the hull's bounding box, or
+/// one of the hull's sides through two like corners of `a` and `b`). Every
+/// segment from a point of `a` to a point of `b` lies in that hull, so an
+/// edge for which this is `false` hides nothing of `b` from `a`.
+fn may_cross_hull(a: Rect, b: Rect, p: [f64; 2], q: [f64; 2]) -> bool {
+    let u = a.union(b);
+    if p[0].max(q[0]) < u.lo[0]
+        || p[0].min(q[0]) > u.hi[0]
+        || p[1].max(q[1]) < u.lo[1]
+        || p[1].min(q[1]) > u.hi[1]
+    {
+        return false;
+    }
+    for (sx, sy) in [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)] {
+        let corner = |r: Rect| {
+            [
+                if sx > 0.0 { r.hi[0] } else { r.lo[0] },
+                if sy > 0.0 { r.hi[1] } else { r.lo[1] },
+            ]
+        };
+        let (ca, cb) = (corner(a), corner(b));
+        let d = [cb[0] - ca[0], cb[1] - ca[1]];
+        let mut n = [-d[1], d[0]];
+        if n[0] * sx + n[1] * sy < 0.0 {
+            n = [d[1], -d[0]];
+        }
+        // Both rectangles' corners of this kind maximise `n . x` over them
+        // only if `n` points into the corner's quadrant: then the line
+        // through the two corners has the hull on one side.
+        if n[0] * sx < 0.0 || n[1] * sy < 0.0 {
+            continue;
+        }
+        let m = n[0] * ca[0] + n[1] * ca[1];
+        if n[0] * p[0] + n[1] * p[1] > m && n[0] * q[0] + n[1] * q[1] > m {
+            return false;
+        }
+    }
+    true
+}
+
+/// The part of a block's `list` (sorted) that a sweep needs when the light
+/// reflected from beyond `r` comes from the block's corners ([`Exact::far`]),
+/// into `kept` (sorted): the lights, the edges within `r` of the block's
+/// pixel centres `block` (everything that can hide a point within `r` of a
+/// pixel lies within `r` of it), and the edges that may hide a light on the
+/// list from some pixel of the block ([`may_cross_hull`]). `false` (and
+/// the whole list to sweep) where that would keep more than three quarters
+/// of the list, or where the list holds more than [`FAR_LAMPS`] lights.
+fn far_list(
+    g: &Geometry,
+    rad: &super::Radiosity,
+    list: &[u32],
+    block: Rect,
+    r: f64,
+    kept: &mut Vec<u32>,
+    lamps: &mut Vec<(u32, Rect)>,
+) -> bool {
+    kept.clear();
+    lamps.clear();
+    let r2 = r * r;
+    let mut far = 0;
+    for &e in list {
+        let edge = &g.edges[e as usize];
+        if rad.edge_emits[e as usize] {
+            let at = Rect::of_edge(edge);
+            match lamps.iter().position(|(l, _)| *l == edge.loop_id) {
+                Some(i) => lamps[i].1 = lamps[i].1.union(at),
+                None if lamps.len() < FAR_LAMPS => lamps.push((edge.loop_id, at)),
+                None => return false,
+            }
+        } else if Rect::of_edge(edge).distance_sq(block) > r2 {
+            far += 1;
+        }
+    }
+    if 4 * far < list.len() {
+        return false;
+    }
+    for &e in list {
+        let edge = &g.edges[e as usize];
+        let keep = rad.edge_emits[e as usize] || Rect::of_edge(edge).distance_sq(block) <= r2 || {
+            let (p, q) = (edge.a.map(f64::from), edge.b.map(f64::from));
+            lamps
+                .iter()
+                .any(|&(_, lamp)| may_cross_hull(block, lamp, p, q))
+        };
+        if keep {
+            kept.push(e);
+        }
+    }
+    4 * kept.len() <= 3 * list.len()
+}
+
+/// At most this many lights (loops that emit) on a block's list for
+/// [`far_list`]: each far edge is tested against each light's hull.
+const FAR_LAMPS: usize = 32;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Whether segments `a b` and `c d` meet (touching counts).
+    fn cross(a: [f64; 2], b: [f64; 2], c: [f64; 2], d: [f64; 2]) -> bool {
+        let side = |p: [f64; 2], q: [f64; 2], r: [f64; 2]| {
+            (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0])
+        };
+        let (d1, d2) = (side(c, d, a), side(c, d, b));
+        let (d3, d4) = (side(a, b, c), side(a, b, d));
+        let within = |p: [f64; 2], q: [f64; 2], r: [f64; 2]| {
+            r[0] >= p[0].min(q[0])
+                && r[0] <= p[0].max(q[0])
+                && r[1] >= p[1].min(q[1])
+                && r[1] <= p[1].max(q[1])
+        };
+        ((d1 > 0.0) != (d2 > 0.0) && (d3 > 0.0) != (d4 > 0.0) && d1 != 0.0 && d3 != 0.0)
+            || (d1 == 0.0 && within(c, d, a))
+            || (d2 == 0.0 && within(c, d, b))
+            || (d3 == 0.0 && within(a, b, c))
+            || (d4 == 0.0 && within(a, b, d))
+    }
+
+    fn rect() -> impl Strategy<Value = Rect> {
+        (-20i32..20, -20i32..20, 0i32..6, 0i32..6).prop_map(|(x, y, w, h)| Rect {
+            lo: [x as f64 + 0.5, y as f64 + 0.5],
+            hi: [(x + w) as f64 + 0.5, (y + h) as f64 + 0.5],
+        })
+    }
+
+    proptest! {
+        /// An edge (axis-aligned, on the pixel grid) that the hull test
+        /// lets go hides no ray from a point of the block to a point of the
+        /// light: sampled rays between the two rectangles never cross it.
+        #[test]
+        fn an_edge_let_go_crosses_no_ray_from_block_to_light(
+            a in rect(),
+            b in rect(),
+            x in -25i32..25,
+            y in -25i32..25,
+            len in 1i32..12,
+            vertical in any::<bool>(),
+            ts in proptest::collection::vec((0.0..=1.0f64, 0.0..=1.0f64, 0.0..=1.0f64, 0.0..=1.0f64), 64),
+        ) {
+            let p = [x as f64, y as f64];
+            let q = if vertical { [p[0], p[1] + len as f64] } else { [p[0] + len as f64, p[1]] };
+            if !may_cross_hull(a, b, p, q) {
+                let at = |r: Rect, u: f64, v: f64| {
+                    [r.lo[0] + u * (r.hi[0] - r.lo[0]), r.lo[1] + v * (r.hi[1] - r.lo[1])]
+                };
+                // The rectangles' corners, and points inside them.
+                let corners = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)];
+                for &(u, v) in &corners {
+                    for &(s, t) in &corners {
+                        prop_assert!(!cross(at(a, u, v), at(b, s, t), p, q));
+                    }
+                }
+                for &(u, v, s, t) in &ts {
+                    prop_assert!(!cross(at(a, u, v), at(b, s, t), p, q));
+                }
+            }
+        }
+    }
+
+    /// The hull test does let go of edges off to the side (else the far
+    /// split would keep every edge).
+    #[test]
+    fn an_edge_off_to_the_side_is_let_go() {
+        let block = Rect {
+            lo: [0.5, 0.5],
+            hi: [4.5, 4.5],
+        };
+        let lamp = Rect {
+            lo: [100.0, 0.0],
+            hi: [102.0, 2.0],
+        };
+        // Beside the ray from the block to the lamp, past its hull.
+        assert!(!may_cross_hull(block, lamp, [50.0, 10.0], [50.0, 11.0]));
+        assert!(!may_cross_hull(block, lamp, [50.0, -6.0], [51.0, -6.0]));
+        // Across it.
+        assert!(may_cross_hull(block, lamp, [50.0, 1.0], [50.0, 2.0]));
+        assert!(may_cross_hull(block, lamp, [50.0, -10.0], [50.0, 10.0]));
+    }
 }
