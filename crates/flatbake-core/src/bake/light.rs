@@ -209,14 +209,13 @@ fn run(
                 );
             }
             if counts.far > 0 {
+                let r = options.far.unwrap_or(0.0);
                 log.skip(
                     "far reflected light",
                     format!(
-                        "{} of those {} swept pixels took the light that walls reflect to them from more than {} px away from the anchors at their block's corners, interpolated, and swept only the lights, the edges within {} px and what may hide a light (their direct light exact)",
+                        "{} of {} floor pixels (swept, or beside a wall with a full query that went past {r} px only where a light was left to find) took the light that walls reflect to them from more than {r} px away from the anchors at the corners of their block, interpolated, and saw only the lights, the edges within {r} px and what may hide a light (their direct light exact)",
                         counts.far,
-                        counts.local,
-                        options.far.unwrap_or(0.0),
-                        options.far.unwrap_or(0.0),
+                        reached.len(),
                     ),
                 );
             }

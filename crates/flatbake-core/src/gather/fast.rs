@@ -166,7 +166,12 @@ pub struct GatherOptions<'a> {
     /// interpolated, and sweeps only the edges within this distance of its
     /// block, the lights, and the edges that may hide a light from some
     /// pixel of the block, where that leaves out enough of its list. Direct
-    /// light stays exact. `None` (and with moments): the whole list.
+    /// light stays exact. A pixel with no block of floor around it takes
+    /// its far reflected light from the corners of its [`Self::anchors`]
+    /// block the same way, where they are floor of its region, and its full
+    /// query wants the light of edges that do not emit only within this
+    /// distance (`Exact::run_near`). `None` (and with moments): the whole
+    /// list, and full queries that want all the light.
     pub far: Option<f64>,
 }
 
@@ -641,6 +646,23 @@ pub fn gather_with_moments(
     // Edges with light, each within its reach.
     let reach2 = wanted_reach(reach, |e| rad.edge_emits[e] || rad.edge_reflects[e]);
     let reaches = Reaches::new(&reach2);
+    // With the far split, the reaches of a walk that wants reflected light
+    // only within that distance (lights as far as they reach).
+    let far = far.filter(|_| !directional && kernel == Kernel::Flatland);
+    let near_reach2: Option<Vec<f64>> = far.map(|r| {
+        reach2
+            .iter()
+            .enumerate()
+            .map(|(e, &r2)| {
+                if rad.edge_emits[e] || r2 < 0.0 {
+                    r2
+                } else {
+                    r2.min(r * r)
+                }
+            })
+            .collect()
+    });
+    let near_reaches = near_reach2.as_deref().map(Reaches::new);
     // The patches' tree, the visibility's structures and the far
     // directions side by side.
     let structures = Structures::new(geometry);
@@ -655,7 +677,17 @@ pub fn gather_with_moments(
                 tolerance,
             )
         },
-        || rayon::join(|| structures.prepare(true), || reaches.prepare(geometry)),
+        || {
+            rayon::join(
+                || structures.prepare(true),
+                || {
+                    reaches.prepare(geometry);
+                    if let Some(n) = &near_reaches {
+                        n.prepare(geometry);
+                    }
+                },
+            )
+        },
     );
     let light = Lighting {
         edges: &geometry.edges,
@@ -672,9 +704,10 @@ pub fn gather_with_moments(
         light: &light,
         reach_max: reach.max,
         reaches,
+        near_reaches,
         tally: &tally,
         directional: directional && kernel == Kernel::Flatland,
-        far: far.filter(|_| !directional && kernel == Kernel::Flatland),
+        far,
     };
     match (lattice, anchors) {
         (Some(relative), _) if kernel == Kernel::Flatland => {
@@ -715,6 +748,10 @@ pub(super) struct Exact<'a> {
     /// Per edge, its squared reach (see [`crate::visibility::Wanted`]),
     /// shared by every pass.
     pub reaches: Reaches<'a>,
+    /// With [`Exact::far`]: [`Exact::reaches`] with every edge that does
+    /// not emit cut to that distance, for the walks that want only the
+    /// light within it and the lights ([`Exact::run_near`]).
+    pub near_reaches: Option<Reaches<'a>>,
     tally: &'a Tally<'a>,
     /// Also the moments ([`Pass::moments`]).
     pub directional: bool,
@@ -761,7 +798,40 @@ impl Exact<'_> {
         signatures: Option<f64>,
         defer: Option<&(dyn Fn(usize) + Sync)>,
     ) -> Pass {
+        self.run_with(pixels, signatures, defer, None)
+    }
+
+    /// [`Exact::run`] of the direct light and the light reflected from
+    /// within [`Exact::far`] only, with [`Exact::near_reaches`] (a walk goes
+    /// on past that distance only where a light may be left to find), and
+    /// `far(i, open, acc)` adding to pixel `i`'s values the light reflected
+    /// to it from beyond, given the angle it has open beyond that distance.
+    /// `None` without [`Exact::far`].
+    pub fn run_near(
+        &self,
+        pixels: &[[i32; 2]],
+        signatures: Option<f64>,
+        far: &(dyn Fn(usize, f64, &mut [f64]) + Sync),
+    ) -> Option<Pass> {
+        let r = self.far?;
+        let reaches = self.near_reaches.as_ref()?;
+        Some(self.run_with(pixels, signatures, None, Some((r, reaches, far))))
+    }
+
+    /// [`Exact::run_deferring`], or with `near` [`Exact::run_near`].
+    #[allow(clippy::type_complexity)]
+    fn run_with(
+        &self,
+        pixels: &[[i32; 2]],
+        signatures: Option<f64>,
+        defer: Option<&(dyn Fn(usize) + Sync)>,
+        near: Option<(f64, &Reaches, &(dyn Fn(usize, f64, &mut [f64]) + Sync))>,
+    ) -> Pass {
         let (light, rad) = (self.light, self.light.rad);
+        let (part, reaches) = match near {
+            Some((r, reaches, _)) => (Part::Near(r), reaches),
+            None => (Part::All, &self.reaches),
+        };
         let k = rad.components;
         let mut out = vec![0.0; pixels.len() * k];
         let mut sigs = vec![
@@ -787,7 +857,7 @@ impl Exact<'_> {
             pixels,
             &|_| View::Full,
             self.reach_max,
-            Some(&self.reaches),
+            Some(reaches),
             &|n| self.tally.add(n),
             defer,
             &|i, spans| {
@@ -802,7 +872,10 @@ impl Exact<'_> {
                 };
                 let (c, sig) = SCRATCH.with(|sc| {
                     let sc = &mut *sc.borrow_mut();
-                    let c = pixel_light(light, centre(pixels[i]), spans, acc, sc);
+                    let c = pixel_light_part(light, centre(pixels[i]), spans, acc, sc, part);
+                    if let Some((_, _, far)) = near {
+                        far(i, TAU - sc.near_angle, acc);
+                    }
                     if directional {
                         let (mut small, mut big) = ([0.0; 6], Vec::new());
                         let m = if k <= 3 {

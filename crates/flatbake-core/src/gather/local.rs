@@ -232,6 +232,9 @@ impl Lists {
         let mut counts = GatherCounts::default();
         let mut anchors: Vec<usize> = Vec::new();
         let mut full: Vec<usize> = Vec::new();
+        // Pixels of `full` that walk near ([`Exact::run_near`]), with the
+        // corners of their 4 px block.
+        let mut near: Vec<(usize, [usize; 4])> = Vec::new();
         let mut blocks: std::collections::HashMap<[i32; 3], usize> = Default::default();
         let mut groups: Vec<Group> = Vec::new();
         let mut pending = vec![false; pixels.len()];
@@ -278,7 +281,26 @@ impl Lists {
                 .filter(|&step| step >= 2)
                 .find_map(|step| Some((step, corners_of(step)?)))
             else {
-                full.push(i);
+                // With the far split, a pixel whose 4 px block's corners are
+                // floor of its region walks for its near light and the
+                // lights only, and takes its far reflected light from them.
+                let c = [(0, 0), (s, 0), (0, s), (s, s)].map(|(dx, dy)| {
+                    index(bx * s + dx, by * s + dy).filter(|&c| comp(pixels[c]) == comp([x, y]))
+                });
+                match c {
+                    [Some(a), Some(b), Some(c), Some(d)]
+                        if exact.far.is_some() && exact.near_reaches.is_some() && km == 0 =>
+                    {
+                        for c in [a, b, c, d] {
+                            if !self.seen.contains_key(&c) && !pending[c] {
+                                pending[c] = true;
+                                anchors.push(c);
+                            }
+                        }
+                        near.push((i, [a, b, c, d]));
+                    }
+                    _ => full.push(i),
+                }
                 continue;
             };
             let origin = [x - x.rem_euclid(step), y - y.rem_euclid(step)];
@@ -310,6 +332,7 @@ impl Lists {
         for gr in &mut groups {
             gr.pixels.retain(|&i| !pending[i]);
         }
+        near.retain(|&(i, _)| !pending[i]);
         // The anchors of the ring around a block's corners (those gathered
         // as anchors anyway) add to its list what a pixel sees through a gap
         // that none of the corners sees through: measured, wall noise at
@@ -349,7 +372,7 @@ impl Lists {
         // (Progress: the wanted pixels that neither the full queries nor
         // the sweeps below count.)
         let swept: usize = groups.iter().map(|gr| gr.pixels.len()).sum();
-        exact.done(want.len().saturating_sub(full.len() + swept));
+        exact.done(want.len().saturating_sub(full.len() + near.len() + swept));
         stats.culled_pairs += dropped;
         counts += pass.counts;
         // Pixels with no anchor: a full query each.
@@ -360,6 +383,26 @@ impl Lists {
         }
         stats += pass.stats;
         counts += pass.counts;
+        // Pixels with no block of floor but the corners of their 4 px one:
+        // a walk for the near light and the lights.
+        let s = self.spacing;
+        let pts: Vec<[i32; 2]> = near.iter().map(|&(i, _)| pixels[i]).collect();
+        let far_light = |j: usize, open: f64, acc: &mut [f64]| {
+            let (i, corners) = near[j];
+            let [x, y] = pixels[i];
+            let fx = x.rem_euclid(s) as f64 / s as f64;
+            let fy = y.rem_euclid(s) as f64 / s as f64;
+            let f = corners.map(|c| &self.far[&c]);
+            add_far(acc, &f, fx, fy, open);
+        };
+        if let Some(pass) = exact.run_near(&pts, signatures, &far_light) {
+            for (j, &(i, _)) in near.iter().enumerate() {
+                store(&pass, j, i, k, &mut out);
+            }
+            stats += pass.stats;
+            counts += pass.counts;
+            counts.far += near.len() as u64;
+        }
         // The rest: a sweep over their block's list. Blocks of one 8 px tile
         // one after the other, as the patch cuts are per tile.
         groups.sort_by_key(|gr| {
@@ -529,31 +572,10 @@ impl Lists {
                                     &mut b.scratch,
                                     part,
                                 );
-                                // Bilinear between the corners, in their order:
-                                // (x0, y0), (x1, y0), (x0, y1), (x1, y1).
                                 let fx = (px[0] - o[0]) as f64 / step as f64;
                                 let fy = (px[1] - o[1]) as f64 / step as f64;
-                                let w = [
-                                    (1.0 - fx) * (1.0 - fy),
-                                    fx * (1.0 - fy),
-                                    (1.0 - fx) * fy,
-                                    fx * fy,
-                                ];
-                                // Scaled by the angle the pixel has open beyond
-                                // `r` against the corners': a wall beside it
-                                // hides more of the far light than they see
-                                // hidden.
-                                let at = |c: usize| (0..4).map(|q| w[q] * f[q][c]).sum::<f64>();
                                 let open = std::f64::consts::TAU - b.scratch.near_angle;
-                                let corners_open = at(k);
-                                let scale = if corners_open > 0.0 {
-                                    open / corners_open
-                                } else {
-                                    1.0
-                                };
-                                for (c, a) in acc.iter_mut().enumerate() {
-                                    *a += at(c) * scale;
-                                }
+                                add_far(&mut acc, &[f[0], f[1], f[2], f[3]], fx, fy, open);
                                 tally[3] += 1;
                                 c
                             }
@@ -773,6 +795,33 @@ fn exact_or_walks(
         Some(&|i| walks.lock().unwrap_or_else(|e| e.into_inner()).push(i)),
     );
     (pass, walks.into_inner().unwrap_or_else(|e| e.into_inner()))
+}
+
+/// Adds to `acc` the light reflected from far away to a pixel at `(fx,
+/// fy)` (0 to 1) between the corners of its block, whose far light and
+/// open angle are `f` (in the order (x0, y0), (x1, y0), (x0, y1), (x1,
+/// y1); each its components, then its open angle): their bilinear
+/// interpolation, scaled by the angle `open` that the pixel has open
+/// beyond the distance against the corners' interpolated one (a wall
+/// beside the pixel hides more of the far light from it than its corners
+/// see hidden).
+fn add_far(acc: &mut [f64], f: &[&Vec<f64>; 4], fx: f64, fy: f64, open: f64) {
+    let w = [
+        (1.0 - fx) * (1.0 - fy),
+        fx * (1.0 - fy),
+        (1.0 - fx) * fy,
+        fx * fy,
+    ];
+    let at = |c: usize| (0..4).map(|q| w[q] * f[q][c]).sum::<f64>();
+    let corners_open = at(acc.len());
+    let scale = if corners_open > 0.0 {
+        open / corners_open
+    } else {
+        1.0
+    };
+    for (c, a) in acc.iter_mut().enumerate() {
+        *a += at(c) * scale;
+    }
 }
 
 /// An axis-aligned rectangle (`lo <= hi`).
