@@ -34,9 +34,9 @@ pub struct GatherCounts {
     /// their block see ([`super::lattice::ANCHOR`]) instead of a full
     /// visibility query.
     pub local: u64,
-    /// Of those, the pixels whose reflected light from beyond
-    /// [`GatherOptions::far`] was interpolated between their block's
-    /// corners.
+    /// Pixels (swept, or beside a wall with a full query) whose reflected
+    /// light from beyond [`GatherOptions::far`] was interpolated between
+    /// their block's corners.
     pub far: u64,
 }
 

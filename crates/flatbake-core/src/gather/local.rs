@@ -395,14 +395,19 @@ impl Lists {
             let f = corners.map(|c| &self.far[&c]);
             add_far(acc, &f, fx, fy, open);
         };
-        if let Some(pass) = exact.run_near(&pts, signatures, &far_light) {
-            for (j, &(i, _)) in near.iter().enumerate() {
-                store(&pass, j, i, k, &mut out);
+        // (`near` is empty without the far split; a full query otherwise.)
+        let pass = match exact.run_near(&pts, signatures, &far_light) {
+            Some(pass) => {
+                counts.far += near.len() as u64;
+                pass
             }
-            stats += pass.stats;
-            counts += pass.counts;
-            counts.far += near.len() as u64;
+            None => exact.run(&pts, signatures),
+        };
+        for (j, &(i, _)) in near.iter().enumerate() {
+            store(&pass, j, i, k, &mut out);
         }
+        stats += pass.stats;
+        counts += pass.counts;
         // The rest: a sweep over their block's list. Blocks of one 8 px tile
         // one after the other, as the patch cuts are per tile.
         groups.sort_by_key(|gr| {
