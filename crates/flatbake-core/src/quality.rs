@@ -80,7 +80,8 @@ pub struct Knobs {
     /// anchors at its block's corners, interpolated, and sweeps only the
     /// edges that can matter otherwise (those within this distance of its
     /// block, the lights, and what may hide a light from it), where that
-    /// leaves out enough of its list ([`crate::gather::GatherOptions::far`]);
+    /// leaves out enough of its list, else its whole list
+    /// ([`crate::gather::GatherOptions::far`]);
     /// a pixel beside a wall takes it from the corners of its block too,
     /// and its full query goes past this distance only towards lights.
     /// Direct light stays exact. `None`: every swept pixel sweeps its

@@ -165,13 +165,15 @@ pub struct GatherOptions<'a> {
     /// beyond this many pixels from the anchors at its block's corners,
     /// interpolated, and sweeps only the edges within this distance of its
     /// block, the lights, and the edges that may hide a light from some
-    /// pixel of the block, where that leaves out enough of its list. Direct
-    /// light stays exact. A pixel with no block of floor around it takes
-    /// its far reflected light from the corners of its [`Self::anchors`]
-    /// block the same way, where they are floor of its region, and its full
-    /// query wants the light of edges that do not emit only within this
-    /// distance (`Exact::run_near`). `None` (and with moments): the whole
-    /// list, and full queries that want all the light.
+    /// pixel of the block, where that leaves out enough of its list (else
+    /// the whole list). Direct light stays exact. A pixel with no block of
+    /// floor around it (on a dense level, no block of [`Self::anchors`]
+    /// px) takes its far reflected light from the corners of its
+    /// [`Self::anchors`] block the same way, where they are floor of its
+    /// region, and its full query wants the light of edges that do not
+    /// emit only within this distance (`Exact::run_near`). `None` (and
+    /// with moments): the whole list, and full queries that want all the
+    /// light.
     pub far: Option<f64>,
 }
 

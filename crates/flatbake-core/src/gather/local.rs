@@ -15,7 +15,10 @@
 //! included, and every edge within [`NEAR`] px of the block is on the list,
 //! so no pixel sees through a wall beside it. A pixel whose block is not floor
 //! of its region throughout (nor, near a wall, the block of half the
-//! spacing around it) gets a full query. What the list can miss is a
+//! spacing around it, which on a dense level ([`DENSE`]) is tried only if
+//! the near walk is not possible) gets a full query (with [`Exact::far`],
+//! a near walk where its block's corners are floor of its region). What
+//! the list can miss is a
 //! distant edge that no anchor of the ring sees but a pixel between them
 //! does (through a gap narrower than the anchors' spacing, or around a
 //! corner): the pixel then sees what lies behind it on the list, or
