@@ -190,11 +190,10 @@ fn close_to_exact(quality: Quality) {
     // interpolation, 0.51 % and 0.58 % with it in the sweeps, 0.61 % and
     // 0.75 % with it also for the pixels beside a pillar (0.71 % and 1.0 %
     // in the sweeps alone without scaling it by the angle a pixel has
-    // open: the far light that a pillar beside a pixel hides from it);
-    // Then 0.77 % and 0.75 %, where a pixel beside a pillar walks near rather
-    // than sweep a 2 px block (0.71 % alone) and a block whose list is not
-    // worth cutting still takes its far light from its corners (0.68 %
-    // alone).
+    // open: the far light that a pillar beside a pixel hides from it), then
+    // 0.77 % and 0.75 % where a pixel beside a pillar walks near rather than
+    // sweep a 2 px block (0.71 % alone) and a block whose list is not worth
+    // cutting still takes its far light from its corners (0.68 % alone);
     // `draft` (the block's corners only, 8 px blocks, 2 px cells) 1.6 % and
     // 3.9 % without the far interpolation, 2.0 % and 4.1 % with it (0.69 %
     // and 3.4 % with 4 px blocks and without the 2 px cells); with each
