@@ -194,22 +194,20 @@ struct FarFrom {
 }
 
 impl FarFrom {
-    /// Whether every corner's far reflected light is known.
-    fn ready(&self, lists: &Lists) -> bool {
-        self.corners.iter().all(|c| lists.far.contains_key(c))
+    /// Its corners' far reflected light ([`Lists::far`]), if every one's
+    /// is known.
+    fn values<'l>(&self, lists: &'l Lists) -> Option<[&'l Vec<f64>; 4]> {
+        let f = self.corners.map(|c| lists.far.get(&c));
+        Some([f[0]?, f[1]?, f[2]?, f[3]?])
     }
 
     /// Adds to `acc` the far reflected light of the pixel at `p`, whose
-    /// open angle beyond the distance is `open` ([`add_far`]).
-    fn add(&self, lists: &Lists, p: [i32; 2], open: f64, acc: &mut [f64]) -> bool {
-        let f = self.corners.map(|c| lists.far.get(&c));
-        let [Some(a), Some(b), Some(c), Some(d)] = f else {
-            return false;
-        };
+    /// open angle beyond the distance is `open`, from its corners' `f`
+    /// ([`FarFrom::values`], [`add_far`]).
+    fn add(&self, f: &[&Vec<f64>; 4], p: [i32; 2], open: f64, acc: &mut [f64]) {
         let fx = (p[0] - self.origin[0]) as f64 / self.step as f64;
         let fy = (p[1] - self.origin[1]) as f64 / self.step as f64;
-        add_far(acc, &[a, b, c, d], fx, fy, open);
-        true
+        add_far(acc, f, fx, fy, open);
     }
 }
 
@@ -432,7 +430,9 @@ impl Lists {
         let pts: Vec<[i32; 2]> = near.iter().map(|&(i, _)| pixels[i]).collect();
         let far_light = |j: usize, open: f64, acc: &mut [f64]| {
             let (i, from) = near[j];
-            from.add(self, pixels[i], open, acc);
+            if let Some(f) = from.values(self) {
+                from.add(&f, pixels[i], open, acc);
+            }
         };
         // (`near` is empty without the far split; a full query otherwise.)
         let pass = match exact.run_near(&pts, signatures, &far_light) {
@@ -585,15 +585,13 @@ impl Lists {
                             origin: o,
                             step,
                         };
-                        if !from.ready(self) {
-                            return None;
-                        }
+                        let f = from.values(self)?;
                         let cut =
                             far_list(g, light.rad, &b.list, rect, r, &mut b.kept, &mut b.lamps);
-                        Some((r, from, cut))
+                        Some((r, from, f, cut))
                     });
                     let list = match corners {
-                        Some((_, _, true)) => &b.kept,
+                        Some((_, _, _, true)) => &b.kept,
                         _ => &b.list,
                     };
                     let mut tally = [0u64; 4];
@@ -618,7 +616,7 @@ impl Lists {
                         acc.iter_mut().for_each(|a| *a = 0.0);
                         let c = match &corners {
                             None => pixel_light(light, p, &b.spans, &mut acc, &mut b.scratch),
-                            Some((r, from, _)) => {
+                            Some((r, from, f, _)) => {
                                 let part = Part::Near(*r);
                                 let c = pixel_light_part(
                                     light,
@@ -629,9 +627,8 @@ impl Lists {
                                     part,
                                 );
                                 let open = std::f64::consts::TAU - b.scratch.near_angle;
-                                if from.add(self, px, open, &mut acc) {
-                                    tally[3] += 1;
-                                }
+                                from.add(f, px, open, &mut acc);
+                                tally[3] += 1;
                                 c
                             }
                         };
