@@ -430,7 +430,11 @@ impl Lists {
         let pts: Vec<[i32; 2]> = near.iter().map(|&(i, _)| pixels[i]).collect();
         let far_light = |j: usize, open: f64, acc: &mut [f64]| {
             let (i, from) = near[j];
-            if let Some(f) = from.values(self) {
+            // (Its corners were gathered above, as anchors, with their far
+            // light.)
+            let f = from.values(self);
+            debug_assert!(f.is_some(), "a near walk's corners have their far light");
+            if let Some(f) = f {
                 from.add(&f, pixels[i], open, acc);
             }
         };
