@@ -17,8 +17,9 @@
 //! of its region throughout (nor, near a wall, the block of half the
 //! spacing around it, which on a dense level ([`DENSE`]) is tried only if
 //! the near walk is not possible) gets a full query (with [`Exact::far`],
-//! a near walk where its block's corners are floor of its region). What
-//! the list can miss is a
+//! a near walk where its block's corners are floor of its region, or on
+//! a dense level three of them where the fourth is a pillar of one
+//! pixel). What the list can miss is a
 //! distant edge that no anchor of the ring sees but a pixel between them
 //! does (through a gap narrower than the anchors' spacing, or around a
 //! corner): the pixel then sees what lies behind it on the list, or
@@ -185,12 +186,15 @@ pub(super) struct Lists {
 
 /// Where a pixel's far reflected light comes from ([`Exact::far`]): the
 /// corners of a block, in the order of [`Group::anchors`], and that
-/// block's top left corner and side.
+/// block's top left corner and side; with `missing`, the corner (0 to 3)
+/// that is a pillar of one pixel, whose slot holds the opposite corner
+/// and which the light of the other three stands for.
 #[derive(Clone, Copy)]
 struct FarFrom {
     corners: [usize; 4],
     origin: [i32; 2],
     step: i32,
+    missing: Option<usize>,
 }
 
 impl FarFrom {
@@ -203,11 +207,24 @@ impl FarFrom {
 
     /// Adds to `acc` the far reflected light of the pixel at `p`, whose
     /// open angle beyond the distance is `open`, from its corners' `f`
-    /// ([`FarFrom::values`], [`add_far`]).
+    /// ([`FarFrom::values`], [`add_far`]): interpolated bilinearly, or
+    /// with a corner missing on the plane through the other three.
     fn add(&self, f: &[&Vec<f64>; 4], p: [i32; 2], open: f64, acc: &mut [f64]) {
         let fx = (p[0] - self.origin[0]) as f64 / self.step as f64;
         let fy = (p[1] - self.origin[1]) as f64 / self.step as f64;
-        add_far(acc, f, fx, fy, open);
+        let w = match self.missing {
+            None => [
+                (1.0 - fx) * (1.0 - fy),
+                fx * (1.0 - fy),
+                (1.0 - fx) * fy,
+                fx * fy,
+            ],
+            Some(0) => [0.0, 1.0 - fy, 1.0 - fx, fx + fy - 1.0],
+            Some(1) => [1.0 - fy, 0.0, fy - fx, fx],
+            Some(2) => [1.0 - fx, fx - fy, 0.0, fy],
+            Some(_) => [1.0 - fx - fy, fx, fy, 0.0],
+        };
+        add_far(acc, f, w, open);
     }
 }
 
@@ -282,6 +299,27 @@ impl Lists {
             Some([c[0]?, c[1]?, c[2]?, c[3]?])
         };
         let dense = DENSE * g.edges.len() >= pixels.len();
+        // The block's corners, or on a dense level three of them where the
+        // fourth is a pillar of one pixel (its eight neighbours floor of
+        // the region: a longer wall there would part the far light of the
+        // corners on its two sides), the pillar's slot holding the
+        // opposite corner. As [`FarFrom`]'s corners and missing corner.
+        let far_corners = |x0: i32, y0: i32, c0| -> Option<([usize; 4], Option<usize>)> {
+            let at = [(0, 0), (s, 0), (0, s), (s, s)];
+            let c = at.map(|(dx, dy)| index(x0 + dx, y0 + dy).filter(|&c| comp(pixels[c]) == c0));
+            if let [Some(a), Some(b), Some(c), Some(d)] = c {
+                return Some(([a, b, c, d], None));
+            }
+            let missing = c.iter().position(Option::is_none)?;
+            let opposite = c[3 - missing]?;
+            let (mx, my) = (x0 + at[missing].0, y0 + at[missing].1);
+            let floor = |x, y| index(x, y).is_some_and(|c| comp(pixels[c]) == c0);
+            let pillar = index(mx, my).is_none()
+                && (-1..=1)
+                    .all(|dy| (-1..=1).all(|dx| (dx, dy) == (0, 0) || floor(mx + dx, my + dy)));
+            (dense && pillar && c.iter().filter(|c| c.is_none()).count() == 1)
+                .then(|| (c.map(|c| c.unwrap_or(opposite)), Some(missing)))
+        };
         for &i in want {
             let [x, y] = pixels[i];
             if x % s == 0 && y % s == 0 {
@@ -297,7 +335,7 @@ impl Lists {
             // around it walks near, on a dense level before a block of half
             // the spacing is tried ([`DENSE`]).
             let near_corners = split
-                .then(|| corners_at(bx * s, by * s, s, comp([x, y])))
+                .then(|| far_corners(bx * s, by * s, comp([x, y])))
                 .flatten();
             // The pixel's block, or near a wall the block of half the
             // spacing around it, if all of it is floor of the pixel's region.
@@ -325,20 +363,20 @@ impl Lists {
                 .find_map(|step| Some((step, corners_of(step)?)))
             else {
                 match near_corners {
-                    Some(c) => {
+                    Some((c, missing)) => {
                         for c in c {
                             if !self.seen.contains_key(&c) && !pending[c] {
                                 pending[c] = true;
                                 anchors.push(c);
                             }
                         }
-                        let (origin, step) = ([bx * s, by * s], s);
                         near.push((
                             i,
                             FarFrom {
                                 corners: c,
-                                origin,
-                                step,
+                                origin: [bx * s, by * s],
+                                step: s,
+                                missing,
                             },
                         ));
                     }
@@ -588,6 +626,7 @@ impl Lists {
                             corners: [c[0], c[1], c[2], c[3]],
                             origin: o,
                             step,
+                            missing: None,
                         };
                         let f = from.values(self)?;
                         let cut =
@@ -860,15 +899,18 @@ fn exact_or_walks(
 /// interpolation, scaled by the angle `open` that the pixel has open
 /// beyond the distance against the corners' interpolated one (a wall
 /// beside the pixel hides more of the far light from it than its corners
-/// see hidden).
-fn add_far(acc: &mut [f64], f: &[&Vec<f64>; 4], fx: f64, fy: f64, open: f64) {
-    let w = [
-        (1.0 - fx) * (1.0 - fy),
-        fx * (1.0 - fy),
-        (1.0 - fx) * fy,
-        fx * fy,
-    ];
-    let at = |c: usize| (0..4).map(|q| w[q] * f[q][c]).sum::<f64>();
+/// see hidden). The interpolation's weights are `w`; where one is
+/// negative (a missing corner's plane, [`FarFrom::add`]), a value below 0
+/// is 0.
+fn add_far(acc: &mut [f64], f: &[&Vec<f64>; 4], w: [f64; 4], open: f64) {
+    let at = |c: usize| {
+        let v = (0..4).map(|q| w[q] * f[q][c]).sum::<f64>();
+        if w.iter().any(|&w| w < 0.0) {
+            v.max(0.0)
+        } else {
+            v
+        }
+    };
     let corners_open = at(acc.len());
     let scale = if corners_open > 0.0 {
         open / corners_open
@@ -1022,6 +1064,62 @@ const FAR_LAMPS: usize = 32;
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    /// A block's far light from its corners: bilinear from four, and from
+    /// three where the fourth is missing, on the plane through them, which
+    /// reproduces light that varies linearly across the block at every
+    /// pixel and stays between the corners' values.
+    #[test]
+    fn far_light_from_three_corners_lies_on_their_plane() {
+        let light = |x: f64, y: f64| 2.0 + 0.3 * x - 0.2 * y;
+        let at = [(0, 0), (4, 0), (0, 4), (4, 4)];
+        // Per corner: one component, then the open angle (equal, so the
+        // pixel's own open angle scales nothing).
+        let values: Vec<Vec<f64>> = at
+            .iter()
+            .map(|&(x, y)| vec![light(x as f64, y as f64), 1.0])
+            .collect();
+        for missing in [None, Some(0), Some(1), Some(2), Some(3)] {
+            let slot = |q: usize| match missing {
+                Some(m) if m == q => 3 - q,
+                _ => q,
+            };
+            let f = [0, 1, 2, 3].map(|q| &values[slot(q)]);
+            let from = FarFrom {
+                corners: [0, 1, 2, 3].map(slot),
+                origin: [8, 12],
+                step: 4,
+                missing,
+            };
+            for y in 0..4 {
+                for x in 0..4 {
+                    let mut acc = [0.0];
+                    from.add(&f, [8 + x, 12 + y], 1.0, &mut acc);
+                    let want = light(x as f64, y as f64);
+                    assert!(
+                        (acc[0] - want).abs() < 1e-12,
+                        "{missing:?} at ({x}, {y}): {} against {want}",
+                        acc[0]
+                    );
+                }
+            }
+        }
+        // Light that falls off towards the missing corner faster than
+        // linearly: the plane would go below 0 there; the light stops at 0.
+        let values = [vec![1.0, 1.0], vec![0.0, 1.0], vec![0.0, 1.0]];
+        let f = [&values[0], &values[1], &values[2], &values[0]];
+        let from = FarFrom {
+            corners: [0, 1, 2, 0],
+            origin: [0, 0],
+            step: 4,
+            missing: Some(3),
+        };
+        for (x, y) in [(3, 3), (2, 3), (3, 2)] {
+            let mut acc = [0.0];
+            from.add(&f, [x, y], 1.0, &mut acc);
+            assert!(acc[0] >= 0.0, "({x}, {y}): {}", acc[0]);
+        }
+    }
 
     /// Whether segments `a b` and `c d` meet (touching counts).
     fn cross(a: [f64; 2], b: [f64; 2], c: [f64; 2], d: [f64; 2]) -> bool {
