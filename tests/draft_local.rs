@@ -250,18 +250,24 @@ fn far_split_keeps_direct_light_exact() {
         );
         s.knobs.far = Some(f64::INFINITY);
         let whole = bake(&lvl, &s, &quiet).unwrap();
-        let (a, b) = (red(&split, &lvl), red(&whole, &lvl));
-        let top = b.iter().flatten().copied().fold(0.0, f64::max);
-        assert!(top > 0.0);
-        for (i, (x, y)) in a.iter().zip(&b).enumerate() {
-            let (Some(x), Some(y)) = (x, y) else { continue };
-            assert!(
-                (x - y).abs() <= 1e-9 * top,
-                "{quality}: pixel ({}, {}) {x} with the split, {y} without",
-                i % lvl.width,
-                i / lvl.width
-            );
-        }
+        same_light(&split, &whole, &lvl, &quality.to_string());
+    }
+}
+
+/// Every floor pixel of `split` reads what it reads in `whole`, up to
+/// rounding (`what` names the bakes in a failure).
+fn same_light(split: &Baked, whole: &Baked, lvl: &Level, what: &str) {
+    let (a, b) = (red(split, lvl), red(whole, lvl));
+    let top = b.iter().flatten().copied().fold(0.0, f64::max);
+    assert!(top > 0.0);
+    for (i, (x, y)) in a.iter().zip(&b).enumerate() {
+        let (Some(x), Some(y)) = (x, y) else { continue };
+        assert!(
+            (x - y).abs() <= 1e-9 * top,
+            "{what}: pixel ({}, {}) {x} with the split, {y} without",
+            i % lvl.width,
+            i / lvl.width
+        );
     }
 }
 
@@ -331,16 +337,5 @@ fn pillars_on_block_corners_take_far_light_from_the_other_three() {
     let split = bake(&lvl, &s, &quiet).unwrap();
     s.knobs.far = Some(f64::INFINITY);
     let whole = bake(&lvl, &s, &quiet).unwrap();
-    let (a, b) = (red(&split, &lvl), red(&whole, &lvl));
-    let top = b.iter().flatten().copied().fold(0.0, f64::max);
-    assert!(top > 0.0);
-    for (i, (x, y)) in a.iter().zip(&b).enumerate() {
-        let (Some(x), Some(y)) = (x, y) else { continue };
-        assert!(
-            (x - y).abs() <= 1e-9 * top,
-            "pixel ({}, {}) {x} with the split, {y} without",
-            i % lvl.width,
-            i / lvl.width
-        );
-    }
+    same_light(&split, &whole, &lvl, "grove");
 }
