@@ -78,6 +78,25 @@ fn red(b: &Baked, lvl: &Level) -> Vec<Option<f64>> {
         .collect()
 }
 
+/// How far floor pixels `a` are from `b`: `b`'s brightest value, the
+/// relative RMS, and the largest difference as a share of that brightest
+/// value, with its pixel.
+fn off(a: &[Option<f64>], b: &[Option<f64>]) -> (f64, f64, (f64, usize)) {
+    let top = b.iter().flatten().copied().fold(0.0, f64::max);
+    assert!(top > 0.0);
+    let (mut sq, mut norm, mut worst) = (0.0, 0.0, (0.0, 0));
+    for (i, (x, y)) in a.iter().zip(b).enumerate() {
+        let (Some(x), Some(y)) = (x, y) else { continue };
+        sq += (x - y) * (x - y);
+        norm += y * y;
+        let d = (x - y).abs() / top;
+        if d > worst.0 {
+            worst = (d, i);
+        }
+    }
+    (top, (sq / norm).sqrt(), worst)
+}
+
 #[test]
 fn draft_sweeps_stay_close_to_the_exact_draft_gather() {
     close_to_exact(Quality::Draft);
@@ -123,19 +142,7 @@ fn close_to_exact(quality: Quality) {
         assert!(cells.is_none(), "{quality} has no 2 px cells");
     }
     let (a, b) = (red(&fast, &lvl), red(&exact, &lvl));
-    let top = b.iter().flatten().copied().fold(0.0, f64::max);
-    assert!(top > 0.0);
-    let (mut sq, mut norm, mut worst) = (0.0, 0.0, (0.0, 0));
-    for (i, (x, y)) in a.iter().zip(&b).enumerate() {
-        let (Some(x), Some(y)) = (x, y) else { continue };
-        sq += (x - y) * (x - y);
-        norm += y * y;
-        let d = (x - y).abs() / top;
-        if d > worst.0 {
-            worst = (d, i);
-        }
-    }
-    let rms = (sq / norm).sqrt();
+    let (top, rms, worst) = off(&a, &b);
     eprintln!("{quality}: {n} pixels swept, relative RMS {rms}, worst {worst:?}");
     if std::env::var_os("DRAFT_DEBUG").is_some() {
         let w = lvl.width;
@@ -307,16 +314,7 @@ fn pillars_on_block_corners_take_far_light_from_the_other_three() {
     s.knobs.lattice = None;
     s.knobs.anchors = None;
     let exact = bake(&lvl, &s, &quiet).unwrap();
-    let (a, b) = (red(&fast, &lvl), red(&exact, &lvl));
-    let top = b.iter().flatten().copied().fold(0.0, f64::max);
-    let (mut sq, mut norm, mut worst) = (0.0, 0.0, 0.0f64);
-    for (x, y) in a.iter().zip(&b) {
-        let (Some(x), Some(y)) = (x, y) else { continue };
-        sq += (x - y) * (x - y);
-        norm += y * y;
-        worst = worst.max((x - y).abs() / top);
-    }
-    let rms = (sq / norm).sqrt();
+    let (_, rms, (worst, _)) = off(&red(&fast, &lvl), &red(&exact, &lvl));
     eprintln!("grove: relative RMS {rms}, worst {worst} of the brightest");
     // Measured: 0.63 % and 0.63 % of the brightest light; 0.28 % and
     // 0.47 % where such pixels took a full query or swept a 2 px block,

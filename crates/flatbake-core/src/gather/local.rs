@@ -291,11 +291,15 @@ impl Lists {
         // its near light and the lights only, and takes its far reflected
         // light from its block's corners if they are floor of its region.
         let split = exact.far.is_some() && exact.near_reaches.is_some() && km == 0;
+        // The pixel at `(x, y)`, if it is floor of region `c0`.
+        let floor_of = |x: i32, y: i32, c0| index(x, y).filter(|&c| comp(pixels[c]) == c0);
+        // Offsets of the corners of a block of side `step`, in
+        // [`Group::anchors`]' order.
+        let corner_offsets = |step: i32| [(0, 0), (step, 0), (0, step), (step, step)];
         // The corners of the block of side `step` at `(x0, y0)`, if they are
         // all floor of region `c0`.
         let corners_at = |x0: i32, y0: i32, step: i32, c0| -> Option<[usize; 4]> {
-            let c = [(0, 0), (step, 0), (0, step), (step, step)]
-                .map(|(dx, dy)| index(x0 + dx, y0 + dy).filter(|&c| comp(pixels[c]) == c0));
+            let c = corner_offsets(step).map(|(dx, dy)| floor_of(x0 + dx, y0 + dy, c0));
             Some([c[0]?, c[1]?, c[2]?, c[3]?])
         };
         let dense = DENSE * g.edges.len() >= pixels.len();
@@ -305,18 +309,19 @@ impl Lists {
         // corners on its two sides), the pillar's slot holding the
         // opposite corner. As [`FarFrom`]'s corners and missing corner.
         let far_corners = |x0: i32, y0: i32, c0| -> Option<([usize; 4], Option<usize>)> {
-            let at = [(0, 0), (s, 0), (0, s), (s, s)];
-            let c = at.map(|(dx, dy)| index(x0 + dx, y0 + dy).filter(|&c| comp(pixels[c]) == c0));
+            let at = corner_offsets(s);
+            let c = at.map(|(dx, dy)| floor_of(x0 + dx, y0 + dy, c0));
             if let [Some(a), Some(b), Some(c), Some(d)] = c {
                 return Some(([a, b, c, d], None));
             }
             let missing = c.iter().position(Option::is_none)?;
             let opposite = c[3 - missing]?;
             let (mx, my) = (x0 + at[missing].0, y0 + at[missing].1);
-            let floor = |x, y| index(x, y).is_some_and(|c| comp(pixels[c]) == c0);
             let pillar = index(mx, my).is_none()
-                && (-1..=1)
-                    .all(|dy| (-1..=1).all(|dx| (dx, dy) == (0, 0) || floor(mx + dx, my + dy)));
+                && (-1..=1).all(|dy| {
+                    (-1..=1)
+                        .all(|dx| (dx, dy) == (0, 0) || floor_of(mx + dx, my + dy, c0).is_some())
+                });
             (dense && pillar && c.iter().filter(|c| c.is_none()).count() == 1)
                 .then(|| (c.map(|c| c.unwrap_or(opposite)), Some(missing)))
         };
@@ -348,14 +353,13 @@ impl Lists {
                 // Every pixel of the block floor of the region, not only its
                 // corners: a solid pixel inside it hides from the corners
                 // what the pixels around it see (measured on wall noise).
-                let open = (y0..=y0 + step).all(|by| {
-                    (x0..=x0 + step)
-                        .all(|bx| index(bx, by).is_some_and(|c| comp(pixels[c]) == comp([x, y])))
-                });
+                let c0 = comp([x, y]);
+                let open = (y0..=y0 + step)
+                    .all(|by| (x0..=x0 + step).all(|bx| floor_of(bx, by, c0).is_some()));
                 if !open {
                     return None;
                 }
-                corners_at(x0, y0, step, comp([x, y]))
+                corners_at(x0, y0, step, c0)
             };
             let Some((step, corners)) = [s, s / 2]
                 .into_iter()
@@ -428,8 +432,7 @@ impl Lists {
             let [bx, by] = [gr.block[0] * s, gr.block[1] * s];
             for dy in [-s, 0, s, 2 * s] {
                 for dx in [-s, 0, s, 2 * s] {
-                    if let Some(c) = index(bx + dx, by + dy)
-                        && comp(pixels[c]) == c0
+                    if let Some(c) = floor_of(bx + dx, by + dy, c0)
                         && (pending[c] || self.seen.contains_key(&c))
                         && !gr.anchors.contains(&c)
                     {
@@ -903,13 +906,10 @@ fn exact_or_walks(
 /// negative (a missing corner's plane, [`FarFrom::add`]), a value below 0
 /// is 0.
 fn add_far(acc: &mut [f64], f: &[&Vec<f64>; 4], w: [f64; 4], open: f64) {
+    let floor = w.iter().any(|&w| w < 0.0);
     let at = |c: usize| {
         let v = (0..4).map(|q| w[q] * f[q][c]).sum::<f64>();
-        if w.iter().any(|&w| w < 0.0) {
-            v.max(0.0)
-        } else {
-            v
-        }
+        if floor { v.max(0.0) } else { v }
     };
     let corners_open = at(acc.len());
     let scale = if corners_open > 0.0 {
@@ -1068,7 +1068,7 @@ mod tests {
     /// A block's far light from its corners: bilinear from four, and from
     /// three where the fourth is missing, on the plane through them, which
     /// reproduces light that varies linearly across the block at every
-    /// pixel and stays between the corners' values.
+    /// pixel and never goes below 0.
     #[test]
     fn far_light_from_three_corners_lies_on_their_plane() {
         let light = |x: f64, y: f64| 2.0 + 0.3 * x - 0.2 * y;
