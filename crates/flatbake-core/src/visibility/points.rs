@@ -287,7 +287,7 @@ where
             let mut skipped = 0;
             let mut dropped = 0;
             // Per region with a long open list: sweep it (`Some(true)`) or
-            // walk, decided by what its first point sees.
+            // walk, decided by what its first point sees ([`Region::open`]).
             let mut sweep_open: Vec<Option<bool>> = vec![None; leaf.regions.len()];
             let mut deferred = 0;
             for &i in grid.in_leaf(leaf.rect) {
@@ -311,9 +311,11 @@ where
                     skipped += 1;
                 } else {
                     let open = region.filter(|&r| leaf.regions[r].open);
-                    let cands = leaf
-                        .candidates_at(px)
-                        .filter(|_| open.is_none_or(|r| sweep_open[r] == Some(true)));
+                    let cands = leaf.candidates_at(px).filter(|c| {
+                        open.is_none_or(|r| {
+                            sweep_open[r].unwrap_or(c.len() <= TileTree::SWEEP_FIRST)
+                        })
+                    });
                     match cands {
                         Some(cands) => {
                             let class = region.and_then(|r| class[r].as_deref());
@@ -342,24 +344,23 @@ where
                                 reaches.and_then(|r| r.far(geometry)),
                                 spans,
                             );
-                            // A point that sees most of its region's list
-                            // has open ground around it: one sort of the
-                            // list costs its neighbours less than walking
-                            // every block. Where the list is mostly hidden
-                            // (walls all round), the walk stops early.
-                            if let Some(r) = open
-                                && sweep_open[r].is_none()
-                            {
-                                let listed =
-                                    leaf.regions[r].candidates.as_ref().map_or(0, Vec::len);
-                                // The edges it sees (an edge's spans in a row
-                                // counted once).
-                                seen.clear();
-                                seen.extend(spans.iter().map(|s| s.edge));
-                                seen.dedup();
-                                sweep_open[r] = Some(2 * seen.len() >= listed);
-                            }
                         }
+                    }
+                    // A point that sees most of its region's list has open
+                    // ground around it: one sort of the list costs its
+                    // neighbours less than walking every block. Where the
+                    // list is mostly hidden (walls all round), the walk
+                    // stops early.
+                    if let Some(r) = open
+                        && sweep_open[r].is_none()
+                    {
+                        let listed = leaf.regions[r].candidates.as_ref().map_or(0, Vec::len);
+                        // The edges it sees (an edge's spans in a row
+                        // counted once).
+                        seen.clear();
+                        seen.extend(spans.iter().map(|s| s.edge));
+                        seen.dedup();
+                        sweep_open[r] = Some(2 * seen.len() >= listed);
                     }
                 }
                 f(i, spans);
