@@ -87,8 +87,8 @@ impl<'g> TileTree<'g> {
     /// sweeps rather than walks. On open ground the walk visits every
     /// block (in a field of 200 lamps a pixel that walks takes 2.3 times
     /// as long as one that sweeps its list of about 400 edges); where a
-    /// point sees little of its list (a courtyard's lists of about 1,000
-    /// edges, of which a point sees 5 %) the walk stops early and the
+    /// point sees little of its list (a courtyard's lists of about 960
+    /// edges, of which a point sees 6 %) the walk stops early and the
     /// sweep would be wasted (measured: that courtyard 8 % slower with
     /// every list swept first).
     pub const SWEEP_FIRST: usize = 512;
