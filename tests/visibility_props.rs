@@ -480,6 +480,69 @@ fn spans_of(
     got.into_iter().map(|m| m.into_inner().unwrap()).collect()
 }
 
+/// On open ground no point walks: in a room of 1 px pillars scattered as
+/// sparsely as lamps in a field of lights, an 8 px tile's region lists
+/// more than `TileTree::SWEEP_SHORT` edges, which culling leaves almost
+/// whole and each point away from the walls mostly sees (the region is
+/// open, `Region::open`), so the region's first point sweeps
+/// its list (at most `TileTree::SWEEP_FIRST` edges) rather than walking
+/// every block to find that out, and the rest follow. With the first
+/// point walking (a `SWEEP_FIRST` of 0, checked by hand) the count is one
+/// walk per region. The spans are those of a plain sweep over every edge.
+#[test]
+fn open_ground_is_swept_from_each_regions_first_point() {
+    let level = walled(200, 200, |x, y| {
+        // One pillar per 20 px cell, at an offset that a hash of the cell
+        // picks.
+        let (cx, cy) = (x / 20, y / 20);
+        let h = (cx as u64 * 0x9e37_79b9 + cy as u64 * 0x85eb_ca6b) % 1009;
+        (x % 20, y % 20) == (2 + h as usize % 16, 2 + (h as usize / 16) % 16)
+    });
+    let g = trace(&level);
+    // Away from the room's walls, where a point sees less than half of
+    // its list and the region rightly walks.
+    let (pixels, _) = free_pixel_centres(&g, &level);
+    let pixels: Vec<[i32; 2]> = pixels
+        .into_iter()
+        .filter(|p| p.iter().all(|&c| (40..160).contains(&c)))
+        .collect();
+    let all: Vec<u32> = (0..g.edges.len() as u32).collect();
+    let got: Vec<std::sync::Mutex<Option<Vec<Span>>>> =
+        (0..pixels.len()).map(|_| Default::default()).collect();
+    let stats = flatbake_core::visibility::for_each_visibility_counted(
+        &Structures::new(&g),
+        None,
+        &pixels,
+        &|_| View::Full,
+        f64::INFINITY,
+        None,
+        &|_| {},
+        None,
+        &|i, spans: &[Span]| *got[i].lock().unwrap() = Some(spans.to_vec()),
+    );
+    assert_eq!(
+        stats.walks,
+        0,
+        "{} points of {} walked",
+        stats.walks,
+        pixels.len()
+    );
+    let mut sw = Sweeper::new();
+    for (i, &[x, y]) in pixels.iter().enumerate().step_by(5) {
+        let comp = g.component_at(x as i64, y as i64).unwrap();
+        let p = [x as f64 + 0.5, y as f64 + 0.5];
+        let mut want = Vec::new();
+        sw.sweep(
+            &g.edges,
+            &all,
+            Viewpoint::new(p, View::Full, comp),
+            &mut want,
+        );
+        let spans = got[i].lock().unwrap().take().expect("every point visited");
+        assert_same_spans(&spans, &want, p);
+    }
+}
+
 /// With `defer`, every point is either queried (with the spans it gets
 /// without `defer`) or handed back, exactly once: in a level of a plain
 /// room beside a field of pillars behind a wall, the pillar field's points

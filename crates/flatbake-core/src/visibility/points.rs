@@ -176,12 +176,16 @@ pub struct VisitStats {
     pub culled_pairs: u64,
     /// Points whose region sees no contributing edge: reported with no spans.
     pub unreached: u64,
+    /// Points whose query walked the level's blocks (the others swept a
+    /// candidate list, or were unreached).
+    pub walks: u64,
 }
 
 impl std::ops::AddAssign for VisitStats {
     fn add_assign(&mut self, o: VisitStats) {
         self.culled_pairs += o.culled_pairs;
         self.unreached += o.unreached;
+        self.walks += o.walks;
     }
 }
 
@@ -260,6 +264,7 @@ where
     let cosine = reaches.and_then(|r| r.cosine);
     let unreached = std::sync::atomic::AtomicU64::new(0);
     let left_out = std::sync::atomic::AtomicU64::new(0);
+    let walks = std::sync::atomic::AtomicU64::new(0);
     let culled_pairs = tree.for_each_leaf(&|r| grid.count_in(r), reach_max, &|leaf| {
         // Per region with a known list: where each candidate's light reaches.
         let class: Vec<Option<Vec<Reachable>>> = leaf
@@ -286,6 +291,7 @@ where
             let (sweeper, spans, seen) = &mut *cell.borrow_mut();
             let mut skipped = 0;
             let mut dropped = 0;
+            let mut walked = 0;
             // Per region with a long open list: sweep it (`Some(true)`) or
             // walk, decided by what its first point sees ([`Region::open`]).
             let mut sweep_open: Vec<Option<bool>> = vec![None; leaf.regions.len()];
@@ -332,6 +338,7 @@ where
                             )
                         }
                         None => {
+                            walked += 1;
                             dropped += sweeper.walk_wanted(
                                 structures.blocks(),
                                 Viewpoint::new(at(i), view(i), comp),
@@ -367,6 +374,7 @@ where
             }
             unreached.fetch_add(skipped, std::sync::atomic::Ordering::Relaxed);
             left_out.fetch_add(dropped, std::sync::atomic::Ordering::Relaxed);
+            walks.fetch_add(walked, std::sync::atomic::Ordering::Relaxed);
             deferred
         });
         done(grid.in_leaf(leaf.rect).len() - deferred);
@@ -374,6 +382,7 @@ where
     VisitStats {
         culled_pairs: culled_pairs + left_out.into_inner(),
         unreached: unreached.into_inner(),
+        walks: walks.into_inner(),
     }
 }
 
