@@ -7,8 +7,8 @@ use common::*;
 use flatbake_core::geometry::{Edge, Geometry, trace};
 use flatbake_core::level::Level;
 use flatbake_core::visibility::{
-    Blocks, FarWanted, Rect, Span, Structures, Sweeper, View, Viewpoint, Wanted, diamond,
-    receiver_keeps,
+    Blocks, FarWanted, Rect, Span, Structures, Sweeper, View, Viewpoint, VisitStats, Wanted,
+    diamond, receiver_keeps,
 };
 use proptest::prelude::*;
 
@@ -460,9 +460,19 @@ fn spans_of(
     pixels: &[[i32; 2]],
     defer: Option<&(dyn Fn(usize) + Sync)>,
 ) -> Vec<Option<Vec<Span>>> {
+    visit(structures, pos, pixels, defer).0
+}
+
+/// [`spans_of`], and what the call counted.
+fn visit(
+    structures: &Structures,
+    pos: Option<&[[f64; 2]]>,
+    pixels: &[[i32; 2]],
+    defer: Option<&(dyn Fn(usize) + Sync)>,
+) -> (Vec<Option<Vec<Span>>>, VisitStats) {
     let got: Vec<std::sync::Mutex<Option<Vec<Span>>>> =
         (0..pixels.len()).map(|_| Default::default()).collect();
-    flatbake_core::visibility::for_each_visibility_counted(
+    let stats = flatbake_core::visibility::for_each_visibility_counted(
         structures,
         pos,
         pixels,
@@ -477,18 +487,19 @@ fn spans_of(
             *slot = Some(spans.to_vec());
         },
     );
-    got.into_iter().map(|m| m.into_inner().unwrap()).collect()
+    let spans = got.into_iter().map(|m| m.into_inner().unwrap()).collect();
+    (spans, stats)
 }
 
 /// On open ground no point walks: in a room of 1 px pillars scattered as
 /// sparsely as lamps in a field of lights, an 8 px tile's region lists
 /// more than `TileTree::SWEEP_SHORT` edges, which culling leaves almost
 /// whole and each point away from the walls mostly sees (the region is
-/// open, `Region::open`), so the region's first point sweeps
-/// its list (at most `TileTree::SWEEP_FIRST` edges) rather than walking
-/// every block to find that out, and the rest follow. With the first
-/// point walking (a `SWEEP_FIRST` of 0, checked by hand) the count is one
-/// walk per region. The spans are those of a plain sweep over every edge.
+/// open, `Region::open`). So the region's first point sweeps its list (at
+/// most `TileTree::SWEEP_FIRST` edges) rather than walking every block to
+/// find that out, and the rest follow. With the first point walking (a
+/// `SWEEP_FIRST` of 0, checked by hand) the count is one walk per region.
+/// The spans are those of a plain sweep over every edge.
 #[test]
 fn open_ground_is_swept_from_each_regions_first_point() {
     let level = walled(200, 200, |x, y| {
@@ -506,29 +517,12 @@ fn open_ground_is_swept_from_each_regions_first_point() {
         .into_iter()
         .filter(|p| p.iter().all(|&c| (40..160).contains(&c)))
         .collect();
+    let (got, stats) = visit(&Structures::new(&g), None, &pixels, None);
+    let n = pixels.len();
+    assert_eq!(stats.walks, 0, "{} points of {n} walked", stats.walks);
     let all: Vec<u32> = (0..g.edges.len() as u32).collect();
-    let got: Vec<std::sync::Mutex<Option<Vec<Span>>>> =
-        (0..pixels.len()).map(|_| Default::default()).collect();
-    let stats = flatbake_core::visibility::for_each_visibility_counted(
-        &Structures::new(&g),
-        None,
-        &pixels,
-        &|_| View::Full,
-        f64::INFINITY,
-        None,
-        &|_| {},
-        None,
-        &|i, spans: &[Span]| *got[i].lock().unwrap() = Some(spans.to_vec()),
-    );
-    assert_eq!(
-        stats.walks,
-        0,
-        "{} points of {} walked",
-        stats.walks,
-        pixels.len()
-    );
     let mut sw = Sweeper::new();
-    for (i, &[x, y]) in pixels.iter().enumerate().step_by(5) {
+    for (&[x, y], spans) in pixels.iter().zip(&got).step_by(5) {
         let comp = g.component_at(x as i64, y as i64).unwrap();
         let p = [x as f64 + 0.5, y as f64 + 0.5];
         let mut want = Vec::new();
@@ -538,8 +532,8 @@ fn open_ground_is_swept_from_each_regions_first_point() {
             Viewpoint::new(p, View::Full, comp),
             &mut want,
         );
-        let spans = got[i].lock().unwrap().take().expect("every point visited");
-        assert_same_spans(&spans, &want, p);
+        let spans = spans.as_ref().expect("every point visited");
+        assert_same_spans(spans, &want, p);
     }
 }
 
