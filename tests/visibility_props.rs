@@ -725,6 +725,53 @@ fn far_wanted_changes_no_wanted_span() {
     }
 }
 
+/// A walk that filters no span but closes its directions past a radius
+/// except towards a few lights ([`FarWanted`] over the lights' reaches
+/// alone, widened: how a dense level's anchors walk) sees the lights as
+/// the walk that goes everywhere does, and every edge that lies within
+/// the radius too: on a field of dots, from every free pixel centre and a
+/// point on every edge, the spans of the lights and of the edges whose
+/// farther end is within the radius are the same. It returns fewer spans:
+/// blocks past the radius in the other directions are not walked.
+#[test]
+fn a_walk_closed_but_towards_the_lights_sees_them_and_what_is_near() {
+    let g = trace(&dot_field(150, 3, 1));
+    let lamp = |e: u32| e.is_multiple_of(97);
+    let reach2: Vec<f64> = (0..g.edges.len() as u32)
+        .map(|e| if lamp(e) { 400.0 * 400.0 } else { -1.0 })
+        .collect();
+    let radius = 32;
+    let far = FarWanted::with_cell(&g, &reach2, radius)
+        .expect("few lights: the lists are kept")
+        .widened(0.1);
+    let blocks = Blocks::new(&g);
+    let mut sw = Sweeper::new();
+    let (mut everywhere, mut closed) = (0, 0);
+    for at in free_centres_and_edge_points(&g, 150) {
+        let (mut a, mut b): (Vec<Span>, Vec<Span>) = (vec![], vec![]);
+        sw.walk_wanted(&blocks, at, f64::INFINITY, None, None, &mut a);
+        sw.walk_wanted(&blocks, at, f64::INFINITY, None, Some(&far), &mut b);
+        let kept = |spans: &[Span]| -> Vec<Span> {
+            spans
+                .iter()
+                .filter(|s| {
+                    let e = &g.edges[s.edge as usize];
+                    let d = |v: [i32; 2]| (v[0] as f64 - at.p[0]).hypot(v[1] as f64 - at.p[1]);
+                    lamp(s.edge) || d(e.a).max(d(e.b)) < radius as f64
+                })
+                .copied()
+                .collect()
+        };
+        assert_same_spans(&kept(&a), &kept(&b), at.p);
+        everywhere += a.len();
+        closed += b.len();
+    }
+    assert!(
+        closed < everywhere,
+        "nothing left unwalked: {closed} spans against {everywhere}"
+    );
+}
+
 /// `FarWanted::new` takes the narrowest radius for which few edges with
 /// light are listed: 8 px when every reach is 2 px, 16 px when reaches of
 /// 12 px list every edge at 8 px, and 32 px when every edge reaches 20 px

@@ -531,6 +531,9 @@ pub struct FarWanted {
     groups: Vec<Group>,
     start: Vec<u32>,
     list: Vec<u32>,
+    /// Pseudo-angle by which each group's directions are widened on both
+    /// sides ([`FarWanted::widened`]).
+    widen: f64,
 }
 
 /// Listed edges of one block: the box around them (`x0, y0, x1, y1`) and
@@ -638,8 +641,23 @@ impl FarWanted {
                 groups,
                 start,
                 list,
+                widen: 0.0,
             })
         })
+    }
+
+    /// The same lists, with each group's directions from a point widened
+    /// by `angle` radians on both sides: past the radius a walk then also
+    /// finds what hides a listed edge from any point within `angle` of the
+    /// walking one as seen from the edge's side (within `radius * sin
+    /// angle` of it, for what lies past the radius). The diamond
+    /// pseudo-angle changes by at most a radian per radian, so widening
+    /// it by `angle` covers the angle.
+    pub fn widened(self, angle: f64) -> FarWanted {
+        FarWanted {
+            widen: angle.max(0.0),
+            ..self
+        }
     }
 
     /// Whether an edge of squared reach `r2` is listed for `radius`: it has
@@ -759,6 +777,9 @@ pub struct Reaches<'a> {
     pub squared: &'a [f64],
     /// See [`Wanted::cosine`].
     pub cosine: Option<f64>,
+    /// With [`Reaches::closing`]: the radius of its [`FarWanted`] and the
+    /// angle its directions are widened by; the spans are not filtered.
+    closing: Option<(i32, f64)>,
     far: OnceLock<Option<FarWanted>>,
 }
 
@@ -768,8 +789,27 @@ impl<'a> Reaches<'a> {
         Reaches {
             squared,
             cosine: None,
+            closing: None,
             far: OnceLock::new(),
         }
+    }
+
+    /// Reaches that only close the directions of a walk past `radius`
+    /// painted pixels ([`FarWanted::with_cell`]) where no edge with light in
+    /// `squared` lies, widened by `angle` radians ([`FarWanted::widened`]):
+    /// every span visible within the radius is returned, lit or not, and
+    /// past it every span in those directions.
+    pub fn closing(squared: &'a [f64], radius: i32, angle: f64) -> Reaches<'a> {
+        Reaches {
+            closing: Some((radius, angle)),
+            ..Reaches::new(squared)
+        }
+    }
+
+    /// Whether the spans are filtered by reach ([`Wanted`]): not with
+    /// [`Reaches::closing`].
+    pub fn filters(&self) -> bool {
+        self.closing.is_none()
     }
 
     /// [`Reaches::new`] for half views whose light carries their cosine,
@@ -792,7 +832,12 @@ impl<'a> Reaches<'a> {
     /// they are worth listing.
     pub(super) fn far(&self, g: &Geometry) -> Option<&FarWanted> {
         self.far
-            .get_or_init(|| FarWanted::new(g, self.squared))
+            .get_or_init(|| match self.closing {
+                None => FarWanted::new(g, self.squared),
+                Some((radius, angle)) => {
+                    FarWanted::with_cell(g, self.squared, radius).map(|f| f.widened(angle))
+                }
+            })
             .as_ref()
     }
 }
@@ -835,9 +880,22 @@ impl Sweeper {
                 BoxView::Around => return None,
                 BoxView::Behind => {}
                 BoxView::Ranges([r0, r1]) => {
-                    self.open.push(r0);
-                    if r1 != r0 {
-                        self.open.push(r1);
+                    let w = far.widen;
+                    for (i, (a, b)) in [r0, r1].into_iter().enumerate() {
+                        if i == 1 && r1 == r0 {
+                            break;
+                        }
+                        let (a, b) = (a - w, b + w);
+                        // Widened past the cut ray, a full view's range
+                        // wraps; a half view's stops at its ends.
+                        let kmax = q.kmax();
+                        self.open.push((a.max(0.0), b.min(kmax)));
+                        if q.full && a < 0.0 {
+                            self.open.push((kmax + a, kmax));
+                        }
+                        if q.full && b > kmax {
+                            self.open.push((0.0, b - kmax));
+                        }
                     }
                 }
             }
@@ -926,10 +984,10 @@ impl Sweeper {
         // The far directions are read only once the walk has inserted, past
         // the radius, edges in proportion to the groups it would read: this
         // many more.
-        let mut reading = match (far, wanted) {
-            (Some(far), Some(w)) => Some((far, w.cosine, FarWanted::LAZY * far.at(p).len() as f64)),
-            _ => None,
-        };
+        let mut reading = far.map(|far| {
+            let cosine = wanted.and_then(|w| w.cosine);
+            (far, cosine, FarWanted::LAZY * far.at(p).len() as f64)
+        });
         let mut closed_past = None;
         let top = blocks.dims.len() - 1;
         self.stack.clear();
