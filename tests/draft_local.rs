@@ -283,7 +283,11 @@ fn same_light(split: &Baked, whole: &Baked, lvl: &Level, what: &str) {
 /// beside a pillar have a corner of their 4 px block in it, so they walk
 /// near and take their far reflected light from the other three corners.
 fn grove_on_the_grid(walls: Material, lights: Material) -> Level {
-    let (w, h) = (96, 64);
+    grove_of(96, 64, walls, lights)
+}
+
+/// [`grove_on_the_grid`], `w` by `h` pixels (its lamps where they are).
+fn grove_of(w: usize, h: usize, walls: Material, lights: Material) -> Level {
     let mut rows = room(w, h);
     let mut put = |x: usize, y: usize, c: char| rows[y].replace_range(x..x + 1, &c.to_string());
     for y in (4..h - 2).step_by(8) {
@@ -336,4 +340,38 @@ fn pillars_on_block_corners_take_far_light_from_the_other_three() {
     s.knobs.far = Some(f64::INFINITY);
     let whole = bake(&lvl, &s, &quiet).unwrap();
     same_light(&split, &whole, &lvl, "grove");
+}
+
+/// On a dense level, with the far split, the anchors off the lattice four
+/// times as coarse walk everywhere within 64 px only, and past it towards
+/// the lights alone, widened for the pixels of their blocks (a split at an
+/// infinite distance has no such anchors). A long grove with its lamps at
+/// one end: most of its pixels see them past 64 px, through the pillars.
+/// An edge that hides a lamp from a pixel, left off its block's list,
+/// shows as light where there is shadow; with black walls a bake with the
+/// split matches one without at every pixel.
+#[test]
+fn anchors_walking_near_keep_what_hides_a_light() {
+    let lvl = grove_of(240, 64, wall(0.0), light(4.0, 0.0));
+    let mut s = Settings::new(Quality::Normal);
+    s.knobs.lattice = None;
+    s.knobs.far = Some(4.0);
+    let split = bake(&lvl, &s, &quiet).unwrap();
+    let outer = anchors_walked_near(&split).expect("the report names the anchors' split");
+    assert!(outer > 200, "only {outer} anchors walked near");
+    s.knobs.far = Some(f64::INFINITY);
+    let whole = bake(&lvl, &s, &quiet).unwrap();
+    assert_eq!(anchors_walked_near(&whole), None);
+    same_light(&split, &whole, &lvl, "long grove");
+}
+
+/// How many anchors walked everywhere only within the outer distance, as
+/// the report of `b` says, if it says so.
+fn anchors_walked_near(b: &Baked) -> Option<usize> {
+    let said = b
+        .report
+        .skipped
+        .iter()
+        .find(|k| k.effect == "anchors' far light")?;
+    said.reason.split(' ').next()?.parse().ok()
 }

@@ -219,6 +219,19 @@ fn run(
                     ),
                 );
             }
+            if counts.outer > 0 {
+                let (r, s) = (
+                    gather::OUTER,
+                    4 * options.anchors.unwrap_or(gather::lattice::ANCHOR),
+                );
+                log.skip(
+                    "anchors' far light",
+                    format!(
+                        "{} anchors walked everywhere within {r} px only, and past it only towards the lights (their direct light exact), and took the light that walls reflect to them from farther from the anchors at the corners of their {s} px block, interpolated",
+                        counts.outer,
+                    ),
+                );
+            }
             if ctx.reach_bound > 0.0 && counts.pieces < counts.patch_pieces {
                 log.skip(
                     "distant patches",

@@ -20,8 +20,8 @@ mod naive;
 mod patch_tree;
 
 pub use fast::{
-    Gather, GatherCounts, GatherOptions, Lighting, OnProgress, PixelScratch, floor_pixels, gather,
-    gather_with_moments, pixel_light,
+    Gather, GatherCounts, GatherOptions, Lighting, OUTER, OnProgress, PixelScratch, floor_pixels,
+    gather, gather_with_moments, pixel_light,
 };
 pub use naive::gather_naive;
 pub use patch_tree::PatchTree;
