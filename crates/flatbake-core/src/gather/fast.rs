@@ -687,23 +687,17 @@ pub fn gather_with_moments(
     });
     let near_reaches = near_reach2.as_deref().map(Reaches::new);
     // With the far split nearer than [`OUTER`], for the anchors' walks on
-    // dense levels: the lights' reaches, whose directions alone an anchor
+    // dense levels: the lights, whose directions alone an anchor
     // walks past [`OUTER`] ([`super::local`]), widened by the angle that a
     // pixel of its blocks (within a diagonal of the spacing) subtends there.
     let spacing = anchors.unwrap_or(super::local::ANCHOR);
     let outer_radius = (OUTER * geometry.unit.max(1) as i32) as f64;
-    let lamp_reach2: Option<Vec<f64>> = far.filter(|&r| r < outer_radius).map(|_| {
-        reach2
-            .iter()
-            .enumerate()
-            .map(|(e, &r2)| if rad.edge_emits[e] { r2 } else { -1.0 })
-            .collect()
-    });
-    let outer = lamp_reach2.as_deref().map(|r2| {
+    let outer = far.filter(|&r| r < outer_radius).map(|_| {
         let angle = (spacing as f64 * std::f64::consts::SQRT_2 / outer_radius)
             .min(1.0)
             .asin();
-        (outer_radius, Reaches::closing(r2, OUTER, angle))
+        let lights = Reaches::closing(&reach2, &rad.edge_emits, OUTER, angle);
+        (outer_radius, lights)
     });
     // The patches' tree, the visibility's structures and the far
     // directions side by side.
@@ -807,9 +801,10 @@ pub(super) struct Exact<'a> {
 }
 
 /// Painted pixels within which a dense level's anchors walk everywhere,
-/// with [`Exact::far`] nearer: past it an anchor walks only towards the
-/// lights, and takes the light reflected to it from farther from the
-/// anchors of a lattice four times as coarse ([`super::local`]). Measured
+/// with [`GatherOptions::far`] nearer: past it an anchor walks only
+/// towards the lights, and takes the light reflected to it from farther
+/// from the anchors of a lattice four times as coarse (the block sweeps
+/// of `gather/local.rs`; transport.md, Far reflected light). Measured
 /// on the pillar field (docs/performance.md): 48, 64, 96 and 128 px took
 /// its bake from 11.45 s to 10.83, 10.69, 11.04 and 11.02 s, at 1.381,
 /// 1.355, 1.343 and 1.341 % from `high` (1.341 % before); nearer, the

@@ -624,6 +624,17 @@ impl FarWanted {
 
     /// [`FarWanted::new`] with cells (and radius) of `cell` painted pixels.
     pub fn with_cell(g: &Geometry, reach2: &[f64], cell: i32) -> Option<FarWanted> {
+        Self::with_cell_of(g, reach2, cell, None)
+    }
+
+    /// [`FarWanted::with_cell`], listing only the edges marked in `only`
+    /// (if given) of those it would list.
+    pub fn with_cell_of(
+        g: &Geometry,
+        reach2: &[f64],
+        cell: i32,
+        only: Option<&[bool]>,
+    ) -> Option<FarWanted> {
         let cell = (cell * g.unit.max(1) as i32) as f64;
         let nx = (g.width as f64 / cell).ceil().max(1.0) as usize;
         let ny = (g.height as f64 / cell).ceil().max(1.0) as usize;
@@ -631,7 +642,7 @@ impl FarWanted {
         // long (many edges reaching far: coarser boxes, fewer of them).
         (0..4).find_map(|k| {
             let side = Self::GROUP * (1 << k) as f64 * g.unit.max(1) as f64;
-            let groups = Self::groups(g, reach2, cell, side, nx, ny)?;
+            let groups = Self::groups(g, reach2, only, cell, side, nx, ny)?;
             let (start, list) = Self::lists(&groups, cell, nx, ny);
             Some(FarWanted {
                 radius: cell,
@@ -683,6 +694,7 @@ impl FarWanted {
     fn groups(
         g: &Geometry,
         reach2: &[f64],
+        only: Option<&[bool]>,
         radius: f64,
         side: f64,
         nx: usize,
@@ -695,8 +707,8 @@ impl FarWanted {
         let mut of_square: Vec<u32> = vec![u32::MAX; bx * by];
         let mut groups: Vec<Group> = Vec::new();
         let (mut entries, budget) = (0usize, Self::MOST * nx * ny);
-        for (e, &r2) in g.edges.iter().zip(reach2) {
-            if !Self::listed(e, r2, radius) {
+        for (i, (e, &r2)) in g.edges.iter().zip(reach2).enumerate() {
+            if !Self::listed(e, r2, radius) || only.is_some_and(|o| !o[i]) {
                 continue;
             }
             let (x0, x1) = (e.a[0].min(e.b[0]) as f64, e.a[0].max(e.b[0]) as f64);
@@ -777,9 +789,10 @@ pub struct Reaches<'a> {
     pub squared: &'a [f64],
     /// See [`Wanted::cosine`].
     pub cosine: Option<f64>,
-    /// With [`Reaches::closing`]: the radius of its [`FarWanted`] and the
-    /// angle its directions are widened by; the spans are not filtered.
-    closing: Option<(i32, f64)>,
+    /// With [`Reaches::closing`]: the radius of its [`FarWanted`], the
+    /// angle its directions are widened by and the edges it lists; the
+    /// spans are not filtered.
+    closing: Option<(i32, f64, &'a [bool])>,
     far: OnceLock<Option<FarWanted>>,
 }
 
@@ -795,13 +808,14 @@ impl<'a> Reaches<'a> {
     }
 
     /// Reaches that only close the directions of a walk past `radius`
-    /// painted pixels ([`FarWanted::with_cell`]) where no edge with light in
-    /// `squared` lies, widened by `angle` radians ([`FarWanted::widened`]):
-    /// every span visible within the radius is returned, lit or not, and
-    /// past it every span in those directions.
-    pub fn closing(squared: &'a [f64], radius: i32, angle: f64) -> Reaches<'a> {
+    /// painted pixels ([`FarWanted::with_cell_of`]) where no edge marked in
+    /// `listed` and with light in `squared` lies, widened by `angle`
+    /// radians ([`FarWanted::widened`]): every span visible within the
+    /// radius is returned, lit or not, and past it every span in those
+    /// directions.
+    pub fn closing(squared: &'a [f64], listed: &'a [bool], radius: i32, angle: f64) -> Reaches<'a> {
         Reaches {
-            closing: Some((radius, angle)),
+            closing: Some((radius, angle, listed)),
             ..Reaches::new(squared)
         }
     }
@@ -834,8 +848,9 @@ impl<'a> Reaches<'a> {
         self.far
             .get_or_init(|| match self.closing {
                 None => FarWanted::new(g, self.squared),
-                Some((radius, angle)) => {
-                    FarWanted::with_cell(g, self.squared, radius).map(|f| f.widened(angle))
+                Some((radius, angle, listed)) => {
+                    FarWanted::with_cell_of(g, self.squared, radius, Some(listed))
+                        .map(|f| f.widened(angle))
                 }
             })
             .as_ref()
