@@ -24,7 +24,11 @@
 //! does (through a gap narrower than the anchors' spacing, or around a
 //! corner): the pixel then sees what lies behind it on the list, or
 //! nothing. That error is measured per class of level in
-//! docs/performance.md.
+//! docs/performance.md. On a dense level with [`Exact::far`], an anchor
+//! off the lattice four times as coarse walks everywhere only within
+//! [`super::fast::OUTER`], and past it towards the lights; the light
+//! reflected to it from farther is its coarse block's corners'
+//! ([`Lists::gather`]; transport.md, Far reflected light).
 
 use rayon::prelude::*;
 
