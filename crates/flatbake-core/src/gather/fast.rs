@@ -1028,3 +1028,132 @@ fn mix(mut z: u64) -> u64 {
     z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
     z ^ (z >> 31)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::visibility::{Sweeper, View, Viewpoint};
+    use crate::{Material, MaterialKind};
+
+    /// The parts of a pixel's light add up to the whole: `Near(r0)` (the
+    /// direct light and what is reflected from within `r0`), `Band(r0,
+    /// r1)` and `Far(r1)` sum to `All` at every floor pixel of a room of
+    /// scattered pillars and two lamps (each part's reflected light is its
+    /// spans' points at those distances, cut where the circles cross
+    /// them), with falloff and without; `Band` and `Far` at `r0` report the
+    /// same angle within `r0`, and neither holds direct light.
+    #[test]
+    fn near_band_and_far_add_up_to_the_whole() {
+        let side = 40;
+        let cells = (0..side * side)
+            .map(|i| {
+                let (x, y) = (i % side, i / side);
+                let h = (i as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 58;
+                if x == 0 || y == 0 || x == side - 1 || y == side - 1 {
+                    Cell::Solid(0)
+                } else if (x, y) == (9, 9) || (x, y) == (30, 25) {
+                    Cell::Solid(1)
+                } else if x % 3 == 1 && y % 3 == 1 && h < 20 {
+                    Cell::Solid(0)
+                } else {
+                    Cell::Floor
+                }
+            })
+            .collect();
+        let material = |kind, reflectance: f64, emission: f64| Material {
+            color: [128; 3],
+            kind,
+            reflectance: [reflectance; 3],
+            emission: [emission; 3],
+            group: None,
+            line: None,
+        };
+        let level = Level {
+            name: "parts".into(),
+            width: side,
+            height: side,
+            cells,
+            albedo: vec![[0.5; 3]; side * side],
+            materials: vec![
+                material(MaterialKind::Wall, 0.5, 0.0),
+                material(MaterialKind::Emitter, 0.3, 4.0),
+            ],
+            warnings: vec![],
+            lossy_format: None,
+            origin: Default::default(),
+            floor_fraction: None,
+        };
+        let g = crate::geometry::trace(&level);
+        let patches = Patches::new(&g, 1.0);
+        let n = patches.len();
+        let b = vec![
+            (0..n)
+                .map(|p| 0.2 + 0.01 * (p % 17) as f64)
+                .collect::<Vec<_>>(),
+        ];
+        let slope = vec![(0..n).map(|p| 0.003 * (p % 5) as f64 - 0.006).collect()];
+        let e = vec![
+            g.edges
+                .iter()
+                .map(|ed| level.materials[ed.material as usize].emission[0])
+                .collect(),
+        ];
+        let rad = Radiosity::new(&patches, &b, &slope, &e);
+        let all_edges: Vec<u32> = (0..g.edges.len() as u32).collect();
+        let (r0, r1) = (5.0, 13.0);
+        for falloff in [None, Some(Falloff::new(8.0))] {
+            let tree = PatchTree::new(&g.edges, &patches, &rad, 0..1, falloff, 0.0);
+            let light = Lighting {
+                edges: &g.edges,
+                patches: &patches,
+                rad: &rad,
+                tree: &tree,
+                falloff,
+                kernel: Kernel::Flatland,
+            };
+            let (mut sw, mut spans, mut sc) = (Sweeper::new(), Vec::new(), PixelScratch::new());
+            let mut checked = 0;
+            for y in 0..side {
+                for x in 0..side {
+                    let Some(comp) = g.component_at(x as i64, y as i64) else {
+                        continue;
+                    };
+                    let p = [x as f64 + 0.5, y as f64 + 0.5];
+                    spans.clear();
+                    sw.sweep(
+                        &g.edges,
+                        &all_edges,
+                        Viewpoint::new(p, View::Full, comp),
+                        &mut spans,
+                    );
+                    let part = |part: Part, sc: &mut PixelScratch| {
+                        let mut acc = [0.0];
+                        pixel_light_part(&light, p, &spans, &mut acc, sc, part);
+                        (acc[0], sc.near_angle)
+                    };
+                    let (whole, _) = part(Part::All, &mut sc);
+                    let (near, _) = part(Part::Near(r0), &mut sc);
+                    let (band, band_angle) = part(Part::Band(r0, r1), &mut sc);
+                    let (far, _) = part(Part::Far(r1), &mut sc);
+                    let (beyond_r0, far_angle) = part(Part::Far(r0), &mut sc);
+                    let sum = near + band + far;
+                    assert!(
+                        (sum - whole).abs() <= 1e-9 * whole.abs().max(1e-6),
+                        "{falloff:?} at {p:?}: {near} + {band} + {far} = {sum}, all {whole}"
+                    );
+                    assert!(
+                        (band + far - beyond_r0).abs() <= 1e-9 * whole.abs().max(1e-6),
+                        "{falloff:?} at {p:?}: band and far {} against far of r0 {beyond_r0}",
+                        band + far
+                    );
+                    assert_eq!(band_angle, far_angle, "{falloff:?} at {p:?}");
+                    checked += usize::from(band > 0.0 && far > 0.0);
+                }
+            }
+            assert!(
+                checked > 500,
+                "only {checked} pixels with light in both parts"
+            );
+        }
+    }
+}
