@@ -685,7 +685,16 @@ pub fn gather_with_moments(
             })
             .collect()
     });
-    let near_reaches = near_reach2.as_deref().map(Reaches::new);
+    // Past that distance such a walk needs only the lights' directions:
+    // an edge that does not emit is wanted only within it, and its spans
+    // there depend on nothing farther. (Listing the edges that straddle
+    // the distance too, as `FarWanted::new` does for a full query's
+    // walk, cost the pillar field 0.9 s of its 10.7 s for the same
+    // lightmap: docs/performance.md.)
+    let near_reaches = near_reach2.as_deref().zip(far).map(|(r2, r)| {
+        let radius = (r / geometry.unit.max(1) as f64).ceil() as i32;
+        Reaches::listing(r2, &rad.edge_emits, radius)
+    });
     // With the far split nearer than [`OUTER`], for the anchors' walks on
     // dense levels: the lights, whose directions alone an anchor
     // walks past [`OUTER`] ([`super::local`]), widened by the angle that a

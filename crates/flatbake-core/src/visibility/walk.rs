@@ -793,6 +793,8 @@ pub struct Reaches<'a> {
     /// angle its directions are widened by and the edges it lists; the
     /// spans are not filtered.
     closing: Option<(i32, f64, &'a [bool])>,
+    /// Whether the spans are filtered by reach ([`Reaches::filters`]).
+    filtering: bool,
     far: OnceLock<Option<FarWanted>>,
 }
 
@@ -803,7 +805,17 @@ impl<'a> Reaches<'a> {
             squared,
             cosine: None,
             closing: None,
+            filtering: true,
             far: OnceLock::new(),
+        }
+    }
+
+    /// [`Reaches::new`], whose [`FarWanted`] lists only the edges marked
+    /// in `listed` and has a radius of `radius` painted pixels.
+    pub fn listing(squared: &'a [f64], listed: &'a [bool], radius: i32) -> Reaches<'a> {
+        Reaches {
+            closing: Some((radius, 0.0, listed)),
+            ..Reaches::new(squared)
         }
     }
 
@@ -816,6 +828,7 @@ impl<'a> Reaches<'a> {
     pub fn closing(squared: &'a [f64], listed: &'a [bool], radius: i32, angle: f64) -> Reaches<'a> {
         Reaches {
             closing: Some((radius, angle, listed)),
+            filtering: false,
             ..Reaches::new(squared)
         }
     }
@@ -823,7 +836,7 @@ impl<'a> Reaches<'a> {
     /// Whether the spans are filtered by reach ([`Wanted`]): not with
     /// [`Reaches::closing`].
     pub fn filters(&self) -> bool {
-        self.closing.is_none()
+        self.filtering
     }
 
     /// [`Reaches::new`] for half views whose light carries their cosine,
