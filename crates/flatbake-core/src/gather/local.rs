@@ -500,20 +500,20 @@ impl Lists {
         }
         // The coarse corners not yet known: those that are anchors of this
         // pass record it, the others are gathered for it alone.
-        let mut wanted_outer = vec![false; pixels.len()];
+        let mut wanted_outer = std::collections::HashSet::new();
         let mut helpers: Vec<usize> = Vec::new();
         for c in fine.iter().flat_map(|(_, f)| f.corners) {
-            if !self.outer.contains_key(&c) && !wanted_outer[c] {
-                wanted_outer[c] = true;
-                if !pending[c] || self.seen.contains_key(&c) {
-                    helpers.push(c);
-                }
+            if !self.outer.contains_key(&c)
+                && wanted_outer.insert(c)
+                && (!pending[c] || self.seen.contains_key(&c))
+            {
+                helpers.push(c);
             }
         }
         // Anchors: a full query, keeping what each sees.
         let all: Vec<usize> = anchors.iter().chain(&helpers).copied().collect();
         let pts: Vec<[i32; 2]> = all.iter().map(|&i| pixels[i]).collect();
-        let record: Vec<bool> = all.iter().map(|&i| wanted_outer[i]).collect();
+        let record: Vec<bool> = all.iter().map(|i| wanted_outer.contains(i)).collect();
         let how = match exact.outer.as_ref() {
             Some((r, _)) if !fine.is_empty() => Outer::Record(*r, &record),
             _ => Outer::None,

@@ -260,8 +260,9 @@ where
     let at = |i: usize| pos.map_or_else(|| centre(pixel[i]), |pos| pos[i]);
     let tree = structures.tree(centres);
     let grid = PointGrid::new(geometry.width, geometry.height, tree.leaf as usize, pixel);
-    let reach2 = reaches.filter(|r| r.filters()).map(|r| r.squared);
-    let cosine = reaches.filter(|r| r.filters()).and_then(|r| r.cosine);
+    let filtering = reaches.filter(|r| r.filters());
+    let reach2 = filtering.map(|r| r.squared);
+    let cosine = filtering.and_then(|r| r.cosine);
     let unreached = std::sync::atomic::AtomicU64::new(0);
     let left_out = std::sync::atomic::AtomicU64::new(0);
     let walks = std::sync::atomic::AtomicU64::new(0);

@@ -789,10 +789,10 @@ pub struct Reaches<'a> {
     pub squared: &'a [f64],
     /// See [`Wanted::cosine`].
     pub cosine: Option<f64>,
-    /// With [`Reaches::closing`]: the radius of its [`FarWanted`], the
-    /// angle its directions are widened by and the edges it lists; the
-    /// spans are not filtered.
-    closing: Option<(i32, f64, &'a [bool])>,
+    /// With [`Reaches::closing`] or [`Reaches::listing`]: the radius of
+    /// its [`FarWanted`], the angle its directions are widened by and the
+    /// edges it lists.
+    only: Option<(i32, f64, &'a [bool])>,
     /// Whether the spans are filtered by reach ([`Reaches::filters`]).
     filtering: bool,
     far: OnceLock<Option<FarWanted>>,
@@ -804,7 +804,7 @@ impl<'a> Reaches<'a> {
         Reaches {
             squared,
             cosine: None,
-            closing: None,
+            only: None,
             filtering: true,
             far: OnceLock::new(),
         }
@@ -814,7 +814,7 @@ impl<'a> Reaches<'a> {
     /// in `listed` and has a radius of `radius` painted pixels.
     pub fn listing(squared: &'a [f64], listed: &'a [bool], radius: i32) -> Reaches<'a> {
         Reaches {
-            closing: Some((radius, 0.0, listed)),
+            only: Some((radius, 0.0, listed)),
             ..Reaches::new(squared)
         }
     }
@@ -827,7 +827,7 @@ impl<'a> Reaches<'a> {
     /// directions.
     pub fn closing(squared: &'a [f64], listed: &'a [bool], radius: i32, angle: f64) -> Reaches<'a> {
         Reaches {
-            closing: Some((radius, angle, listed)),
+            only: Some((radius, angle, listed)),
             filtering: false,
             ..Reaches::new(squared)
         }
@@ -859,7 +859,7 @@ impl<'a> Reaches<'a> {
     /// they are worth listing.
     pub(super) fn far(&self, g: &Geometry) -> Option<&FarWanted> {
         self.far
-            .get_or_init(|| match self.closing {
+            .get_or_init(|| match self.only {
                 None => FarWanted::new(g, self.squared),
                 Some((radius, angle, listed)) => {
                     FarWanted::with_cell_of(g, self.squared, radius, Some(listed))
