@@ -399,7 +399,7 @@ fn cell_of(v: f64, size: f64, n: usize) -> usize {
     ((v / size).floor().max(0.0) as usize).min(n - 1)
 }
 
-/// Edges binned into square blocks, with a pyramid of counts above them,
+/// Edges binned into square blocks, with a pyramid of boxes above them,
 /// for [`Sweeper::walk`].
 pub struct Blocks<'g> {
     /// The edges binned (the geometry's).
@@ -407,8 +407,13 @@ pub struct Blocks<'g> {
     size: i32,
     /// `(nx, ny)` per level; level 0 are the blocks.
     dims: Vec<(usize, usize)>,
-    /// Edge counts per node per level.
-    counts: Vec<Vec<u32>>,
+    /// Per node per level: the box around the parts of its edges that lie
+    /// in its square (`x0, y0, x1, y1`: each edge cut to a block's square
+    /// along its axis; `x0 > x1` where it has none), which the walk tests
+    /// instead of the square. A block of a pillar or two is mostly empty,
+    /// and a far block seen through a gap is often hidden where its square
+    /// is not.
+    boxes: Vec<Vec<[i32; 4]>>,
     /// Edges of block `b`: `list[start[b]..start[b + 1]]`.
     start: Vec<usize>,
     list: Vec<u32>,
@@ -470,38 +475,52 @@ impl<'g> Blocks<'g> {
         let start = count0.clone();
         let mut fill = count0;
         let mut list = vec![0u32; start[nx * ny]];
+        const EMPTY: [i32; 4] = [i32::MAX, i32::MAX, i32::MIN, i32::MIN];
+        let grow = |o: &mut [i32; 4], k: [i32; 4]| {
+            *o = [
+                o[0].min(k[0]),
+                o[1].min(k[1]),
+                o[2].max(k[2]),
+                o[3].max(k[3]),
+            ];
+        };
+        let mut boxes = vec![vec![EMPTY; nx * ny]];
         for (ei, e) in g.edges.iter().enumerate() {
             let (a0, a1, l) = blocks_of(e);
+            let (lo, hi) = e.extent();
+            let line = e.line() as i32;
             for a in a0..=a1 {
                 let b = id(e, a, l);
                 list[fill[b]] = ei as u32;
                 fill[b] += 1;
+                let (s0, s1) = ((lo as i32).max(a * size), (hi as i32).min((a + 1) * size));
+                let part = if e.normal.is_vertical_edge() {
+                    [line, s0, line, s1]
+                } else {
+                    [s0, line, s1, line]
+                };
+                grow(&mut boxes[0][b], part);
             }
         }
         let mut dims = vec![(nx, ny)];
-        let mut counts = vec![
-            (0..nx * ny)
-                .map(|b| (start[b + 1] - start[b]) as u32)
-                .collect::<Vec<u32>>(),
-        ];
         while dims.last().is_some_and(|&(x, y)| x > 1 || y > 1) {
             let (px, py) = *dims.last().expect("non-empty");
             let (cx, cy) = (px.div_ceil(2), py.div_ceil(2));
-            let prev = counts.last().expect("non-empty");
-            let mut c = vec![0u32; cx * cy];
+            let prev = boxes.last().expect("non-empty");
+            let mut up = vec![EMPTY; cx * cy];
             for y in 0..py {
                 for x in 0..px {
-                    c[(y / 2) * cx + x / 2] += prev[y * px + x];
+                    grow(&mut up[(y / 2) * cx + x / 2], prev[y * px + x]);
                 }
             }
             dims.push((cx, cy));
-            counts.push(c);
+            boxes.push(up);
         }
         Blocks {
             edges: &g.edges,
             size,
             dims,
-            counts,
+            boxes,
             start,
             list,
         }
@@ -1022,12 +1041,14 @@ impl Sweeper {
         self.stack.push((top as u8, 0, 0));
         while let Some((level, x, y)) = self.stack.pop() {
             let (nx, _) = blocks.dims[level as usize];
-            if blocks.counts[level as usize][y as usize * nx + x as usize] == 0 {
+            let node = y as usize * nx + x as usize;
+            let [x0, y0, x1, y1] = blocks.boxes[level as usize][node];
+            if x0 > x1 {
+                // No edges.
                 continue;
             }
+            let [x0, y0, x1, y1] = [x0, y0, x1, y1].map(f64::from);
             let side = (blocks.size << level) as f64;
-            let (x0, y0) = (x as f64 * side, y as f64 * side);
-            let (x1, y1) = (x0 + side, y0 + side);
             let dmin = box_distance_sq(p, x0, y0, x1, y1).sqrt();
             if dmin > reach_max || self.cover.closed_before(dmin) {
                 continue;
@@ -1039,6 +1060,8 @@ impl Sweeper {
                     // Past the radius only the open directions count: the
                     // closed ones are never walked there, so the coverage
                     // stays empty in them and would keep every block open.
+                    // (A node whose edges all lie past it, whatever its
+                    // square, is tested so too.)
                     let hidden = if closed_past.is_some_and(|d| dmin > d) {
                         ranges
                             .iter()
@@ -1052,9 +1075,15 @@ impl Sweeper {
                 }
             }
             if level == 0 {
-                let b = y as usize * nx + x as usize;
+                let b = node;
+                // Counted past the radius by the block's square rather
+                // than its edges' box: [`FarWanted::LAZY`] was measured so.
+                let square = || {
+                    let (sx, sy) = (x as f64 * side, y as f64 * side);
+                    box_distance_sq(p, sx, sy, sx + side, sy + side).sqrt()
+                };
                 if let Some((far, cosine, left)) = &mut reading
-                    && dmin > far.radius
+                    && square() > far.radius
                 {
                     *left -= (blocks.start[b + 1] - blocks.start[b]) as f64;
                     if *left <= 0.0 {
