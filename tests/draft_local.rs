@@ -375,3 +375,52 @@ fn anchors_walked_near(b: &Baked) -> Option<usize> {
         .find(|k| k.effect == "anchors' far light")?;
     said.reason.split(' ').next()?.parse().ok()
 }
+
+/// On a level of many lights (a block's list holding more than
+/// `gather::FAR_LAMPS`), a swept pixel sweeps only the edges within
+/// `gather::LAMP_FAR` of its block and takes all the light from beyond,
+/// the lights' too, from its block's corners, scaled by the angle it has
+/// open past that distance. Against the same preset without the far split
+/// (every light gathered exactly at every pixel), on an open field of 100
+/// small lights with the generator's falloff: within 0.4 % RMS and 2.5 %
+/// of the brightest pixel anywhere. Measured: 0.19 % and 1.75 % (the
+/// worst pixel, beside a light, reads the same without the lights' split,
+/// which gives 0.23 % RMS); with none of the far light added, 3.3 % RMS.
+#[test]
+fn many_lights_take_their_far_light_from_the_corners() {
+    let (lvl, palette) = flatbake_synth::light_field(256, 100, 43.0, 5)
+        .level()
+        .expect("the generator's palette parses");
+    let mut s = Settings::new(Quality::Normal);
+    s.falloff = palette.settings.falloff;
+    s.knobs.lattice = None;
+    let split = bake(&lvl, &s, &quiet).unwrap();
+    let said = split
+        .report
+        .skipped
+        .iter()
+        .find(|k| k.effect == "far light of many lights")
+        .expect("the report names the lights' far light");
+    let n: usize = said.reason.split(' ').next().unwrap().parse().unwrap();
+    let floor = lvl.cells.iter().filter(|c| **c == Cell::Floor).count();
+    assert!(2 * n > floor, "only {n} of {floor} pixels: {}", said.reason);
+    s.knobs.far = None;
+    let whole = bake(&lvl, &s, &quiet).unwrap();
+    assert!(
+        !whole
+            .report
+            .skipped
+            .iter()
+            .any(|k| k.effect == "far light of many lights"),
+        "no lights' far light without the split"
+    );
+    let (_, rms, worst) = off(&red(&split, &lvl), &red(&whole, &lvl));
+    eprintln!("many lights: relative RMS {rms}, worst {worst:?} of the brightest");
+    assert!(rms < 0.004, "relative RMS {rms}");
+    assert!(
+        worst.0 < 0.025,
+        "pixel {} off by {} of the brightest light",
+        worst.1,
+        worst.0
+    );
+}

@@ -219,6 +219,18 @@ fn run(
                     ),
                 );
             }
+            if counts.far_lights > 0 {
+                let r = gather::LAMP_FAR;
+                log.skip(
+                    "far light of many lights",
+                    format!(
+                        "{} of {} floor pixels, swept in blocks whose list held more than {} lights, took all the light from more than {r} px away, the lights' own too, from the anchors at the corners of their block, interpolated and scaled by the angle the pixel has open past {r} px (the light from nearer exact; they swept only the edges within {r} px)",
+                        counts.far_lights,
+                        reached.len(),
+                        gather::FAR_LAMPS,
+                    ),
+                );
+            }
             if counts.outer > 0 {
                 let (r, s) = (
                     gather::OUTER,

@@ -28,7 +28,12 @@
 //! off the lattice four times as coarse walks everywhere only within
 //! [`super::fast::OUTER`], and past it towards the lights; the light
 //! reflected to it from farther is its coarse block's corners'
-//! ([`Lists::gather`]; transport.md, Far reflected light).
+//! ([`Lists::gather`]; transport.md, Far reflected light). On a level of
+//! many lights, a swept pixel whose block's list holds more than
+//! [`FAR_LAMPS`] of them sweeps only the edges within
+//! [`super::LAMP_FAR`] and takes all the light from beyond, the lights'
+//! too, from its block's corners (transport.md, Far light of many
+//! lights).
 
 use rayon::prelude::*;
 
@@ -187,6 +192,10 @@ pub(super) struct Lists {
     /// distance: that light, per component, then the angle open beyond
     /// that distance.
     outer: std::collections::HashMap<usize, Vec<f64>>,
+    /// With [`Exact::lamp_far`], per anchor of `seen` gathered by a full
+    /// walk: all the light from beyond that distance, the lights' too, per
+    /// component, then the angle open beyond that distance.
+    lamp_far: std::collections::HashMap<usize, Vec<f64>>,
     /// Spacing of the anchors, in pixels.
     spacing: i32,
     /// Also the anchors of the ring around a block ([`Lists::new`]).
@@ -273,6 +282,7 @@ impl Lists {
             seen: Default::default(),
             far: Default::default(),
             outer: Default::default(),
+            lamp_far: Default::default(),
         }
     }
 
@@ -518,7 +528,8 @@ impl Lists {
             Some((r, _)) if !fine.is_empty() => Outer::Record(*r, &record),
             _ => Outer::None,
         };
-        let (pass, seen, far, beyond, dropped) = run_recording(exact, &pts, signatures, how);
+        let (pass, seen, far, beyond, lamp_far, dropped) =
+            run_recording(exact, &pts, signatures, how);
         for ((j, &i), list) in all.iter().enumerate().zip(seen) {
             if record[j] {
                 self.outer
@@ -532,6 +543,10 @@ impl Lists {
             if !far.is_empty() {
                 self.far
                     .insert(i, far[j * (k + 1)..(j + 1) * (k + 1)].to_vec());
+            }
+            if !lamp_far.is_empty() {
+                self.lamp_far
+                    .insert(i, lamp_far[j * (k + 1)..(j + 1) * (k + 1)].to_vec());
             }
         }
         stats.culled_pairs += dropped;
@@ -549,7 +564,7 @@ impl Lists {
                 .unwrap_or_default();
             let pts: Vec<[i32; 2]> = fine.iter().map(|&(i, _)| pixels[i]).collect();
             let how = Outer::Near(*r, reaches, &from);
-            let (pass, seen, far, _, dropped) = run_recording(exact, &pts, signatures, how);
+            let (pass, seen, far, _, _, dropped) = run_recording(exact, &pts, signatures, how);
             for ((j, &(i, _)), list) in fine.iter().enumerate().zip(seen) {
                 store(&pass, j, i, k, &mut out);
                 self.seen.insert(i, list);
@@ -684,7 +699,7 @@ impl Lists {
         let mut out = vec![0.0; total * k];
         let mut moments = vec![0.0; total * km];
         let mut sigs = vec![0u64; if signatures.is_some() { total } else { 0 }];
-        let mut merged = vec![[0u64; 4]; groups.len()];
+        let mut merged = vec![[0u64; 5]; groups.len()];
         {
             let shared = Disjoint::new(&mut out);
             let shared_moments = Disjoint::new(&mut moments);
@@ -740,13 +755,23 @@ impl Lists {
                         let f = from.values(self)?;
                         let cut =
                             far_list(g, light.rad, &b.list, rect, r, &mut b.kept, &mut b.lamps);
-                        Some((r, from, f, cut))
+                        // Many lights: all the light from beyond the
+                        // lights' distance comes from the corners, if
+                        // they have it.
+                        if cut == FarCut::ManyLights
+                            && let Some(rl) = exact.lamp_far
+                            && let Some(f) = from.values_in(&self.lamp_far)
+                        {
+                            near_list(g, &b.list, rect, rl, &mut b.kept);
+                            return Some((Part::Inside(rl), from, f, true));
+                        }
+                        Some((Part::Near(r), from, f, cut == FarCut::Kept))
                     });
                     let list = match corners {
                         Some((_, _, _, true)) => &b.kept,
                         _ => &b.list,
                     };
-                    let mut tally = [0u64; 4];
+                    let mut tally = [0u64; 5];
                     let mut acc = vec![0.0; k];
                     let mut m = vec![0.0; km];
                     for (j, &i) in gr.pixels.iter().enumerate() {
@@ -768,8 +793,8 @@ impl Lists {
                         acc.iter_mut().for_each(|a| *a = 0.0);
                         let c = match &corners {
                             None => pixel_light(light, p, &b.spans, &mut acc, &mut b.scratch),
-                            Some((r, from, f, _)) => {
-                                let part = Part::Near(*r);
+                            Some((part, from, f, _)) => {
+                                let part = *part;
                                 let c = pixel_light_part(
                                     light,
                                     p,
@@ -780,7 +805,13 @@ impl Lists {
                                 );
                                 let open = std::f64::consts::TAU - b.scratch.near_angle;
                                 from.add(f, px, open, &mut acc);
-                                tally[3] += 1;
+                                // (Counted apart: the far light of the
+                                // lights, or the walls' only.)
+                                tally[if matches!(part, Part::Inside(_)) {
+                                    4
+                                } else {
+                                    3
+                                }] += 1;
                                 c
                             }
                         };
@@ -820,6 +851,7 @@ impl Lists {
             counts.patch_pieces += c[1];
             dropped += c[2];
             counts.far += c[3];
+            counts.far_lights += c[4];
         }
         counts.local = total as u64;
         (out, moments, sigs, (counts, dropped))
@@ -873,7 +905,14 @@ fn run_recording(
     pixels: &[[i32; 2]],
     signatures: Option<f64>,
     outer: Outer,
-) -> (super::fast::Pass, Vec<Vec<u32>>, Vec<f64>, Vec<f64>, u64) {
+) -> (
+    super::fast::Pass,
+    Vec<Vec<u32>>,
+    Vec<f64>,
+    Vec<f64>,
+    Vec<f64>,
+    u64,
+) {
     let (light, rad) = (exact.light, exact.light.rad);
     let k = rad.components;
     let km = if exact.directional { 2 * k } else { 0 };
@@ -908,11 +947,23 @@ fn run_recording(
         Outer::Near(r, reaches, from) => (Some(reaches), Some((r, from))),
         _ => (None, None),
     };
+    // All the light from beyond [`Exact::lamp_far`], for the pixels that
+    // walk everywhere.
+    let lamp_far_r = exact.lamp_far.filter(|_| near.is_none());
+    let mut lamp_far = vec![
+        0.0;
+        if lamp_far_r.is_some() {
+            pixels.len() * (k + 1)
+        } else {
+            0
+        }
+    ];
     // Pieces, patch pieces and pairs beyond reach, summed per thread.
     let merged = PerThread::<3>::new();
     {
         let (shared, shared_sig) = (Disjoint::new(&mut out), Disjoint::new(&mut sigs));
         let shared_far = Disjoint::new(&mut far);
+        let shared_lamp_far = Disjoint::new(&mut lamp_far);
         let record = !beyond.is_empty();
         let shared_beyond = Disjoint::new(&mut beyond);
         let shared_moments = Disjoint::new(&mut moments);
@@ -936,6 +987,7 @@ fn run_recording(
                 let mut m = vec![0.0; km];
                 let mut f = vec![0.0; if exact.far.is_some() { k + 1 } else { 0 }];
                 let mut o = vec![0.0; if record { k + 1 } else { 0 }];
+                let mut lf = vec![0.0; if lamp_far_r.is_some() { k + 1 } else { 0 }];
                 let (c, sig, dropped) = BUFFERS.with(|b| {
                     let b = &mut *b.borrow_mut();
                     let dropped = within_reach(exact, at, spans, &mut b.lit);
@@ -982,6 +1034,11 @@ fn run_recording(
                         pixel_light_part(light, at, &b.lit, &mut o[..k], &mut b.scratch, part);
                         o[k] = std::f64::consts::TAU - b.scratch.near_angle;
                     }
+                    if let Some(r) = lamp_far_r {
+                        let part = Part::Outside(r);
+                        pixel_light_part(light, at, &b.lit, &mut lf[..k], &mut b.scratch, part);
+                        lf[k] = std::f64::consts::TAU - b.scratch.near_angle;
+                    }
                     (c, sig, dropped)
                 });
                 merged.add([c.pieces, c.patch_pieces, dropped]);
@@ -999,6 +1056,9 @@ fn run_recording(
                     }
                     for (c, &v) in o.iter().enumerate() {
                         shared_beyond.write(i * (k + 1) + c, v);
+                    }
+                    for (c, &v) in lf.iter().enumerate() {
+                        shared_lamp_far.write(i * (k + 1) + c, v);
                     }
                     if let Some(h) = sig {
                         shared_sig.write(i, h);
@@ -1020,7 +1080,7 @@ fn run_recording(
         stats: VisitStats::default(),
         counts,
     };
-    (pass, seen, far, beyond, dropped)
+    (pass, seen, far, beyond, lamp_far, dropped)
 }
 
 /// Gathers every one of `pixels` as [`Lists::gather_walking`] does, with
@@ -1251,9 +1311,10 @@ fn may_cross_hull(a: Rect, b: Rect, p: [f64; 2], q: [f64; 2]) -> bool {
 /// into `kept` (sorted): the lights, the edges within `r` of the block's
 /// pixel centres `block` (everything that can hide a point within `r` of a
 /// pixel lies within `r` of it), and the edges that may hide a light on the
-/// list from some pixel of the block ([`may_cross_hull`]). `false` (and
-/// the whole list to sweep) where that would keep more than three quarters
-/// of the list, or where the list holds more than [`FAR_LAMPS`] lights.
+/// list from some pixel of the block ([`may_cross_hull`]). [`FarCut::Whole`]
+/// where that would keep more than three quarters of the list, and
+/// [`FarCut::ManyLights`] where the list holds more than [`FAR_LAMPS`]
+/// lights (`kept` then unset).
 fn far_list(
     g: &Geometry,
     rad: &super::Radiosity,
@@ -1262,7 +1323,7 @@ fn far_list(
     r: f64,
     kept: &mut Vec<u32>,
     lamps: &mut Vec<(u32, Rect)>,
-) -> bool {
+) -> FarCut {
     kept.clear();
     lamps.clear();
     let r2 = r * r;
@@ -1274,14 +1335,14 @@ fn far_list(
             match lamps.iter().position(|(l, _)| *l == edge.loop_id) {
                 Some(i) => lamps[i].1 = lamps[i].1.union(at),
                 None if lamps.len() < FAR_LAMPS => lamps.push((edge.loop_id, at)),
-                None => return false,
+                None => return FarCut::ManyLights,
             }
         } else if Rect::of_edge(edge).distance_sq(block) > r2 {
             far += 1;
         }
     }
     if 4 * far < list.len() {
-        return false;
+        return FarCut::Whole;
     }
     for &e in list {
         let edge = &g.edges[e as usize];
@@ -1295,7 +1356,40 @@ fn far_list(
             kept.push(e);
         }
     }
-    4 * kept.len() <= 3 * list.len()
+    if 4 * kept.len() <= 3 * list.len() {
+        FarCut::Kept
+    } else {
+        FarCut::Whole
+    }
+}
+
+/// What a block's sweep takes from its corners ([`far_list`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum FarCut {
+    /// The light reflected from beyond the far split, and the sweep needs
+    /// only the list's part `kept`.
+    Kept,
+    /// The light reflected from beyond the far split; the sweep needs the
+    /// whole list.
+    Whole,
+    /// The list holds more lights than [`FAR_LAMPS`]: with
+    /// [`Exact::lamp_far`], all the light from beyond that distance, and
+    /// the sweep needs the edges within it ([`near_list`]); else as
+    /// [`FarCut::Whole`].
+    ManyLights,
+}
+
+/// The edges of a block's `list` (sorted) within `r` of its pixel centres
+/// `block`, into `kept` (sorted): everything that can hide from a pixel of
+/// the block a point within `r` of it.
+fn near_list(g: &Geometry, list: &[u32], block: Rect, r: f64, kept: &mut Vec<u32>) {
+    let r2 = r * r;
+    kept.clear();
+    kept.extend(
+        list.iter()
+            .copied()
+            .filter(|&e| Rect::of_edge(&g.edges[e as usize]).distance_sq(block) <= r2),
+    );
 }
 
 /// A pixel with no block of the spacing that is floor around it walks
@@ -1308,9 +1402,12 @@ fn far_list(
 /// slower, the courtyard 2 %).
 const DENSE: usize = 64;
 
-/// At most this many lights (loops that emit) on a block's list for
-/// [`far_list`]: each far edge is tested against each light's hull.
-const FAR_LAMPS: usize = 32;
+/// At most this many lights (loops that emit) on a block's list for its
+/// sweep to keep only the edges that may hide a light (`far_list`: each
+/// far edge is tested against each light's hull). With the far split, on
+/// a level of more lights, a list with more takes all its light from
+/// beyond [`super::LAMP_FAR`] from its block's corners, the lights' too.
+pub const FAR_LAMPS: usize = 32;
 
 #[cfg(test)]
 mod tests {

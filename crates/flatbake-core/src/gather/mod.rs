@@ -20,9 +20,10 @@ mod naive;
 mod patch_tree;
 
 pub use fast::{
-    Gather, GatherCounts, GatherOptions, Lighting, OUTER, OnProgress, PixelScratch, floor_pixels,
-    gather, gather_with_moments, pixel_light,
+    Gather, GatherCounts, GatherOptions, LAMP_FAR, Lighting, OUTER, OnProgress, PixelScratch,
+    floor_pixels, gather, gather_with_moments, pixel_light,
 };
+pub use local::FAR_LAMPS;
 pub use naive::gather_naive;
 pub use patch_tree::PatchTree;
 
