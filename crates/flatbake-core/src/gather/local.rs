@@ -544,9 +544,11 @@ impl Lists {
                 self.far
                     .insert(i, far[j * (k + 1)..(j + 1) * (k + 1)].to_vec());
             }
-            if !lamp_far.is_empty() {
-                self.lamp_far
-                    .insert(i, lamp_far[j * (k + 1)..(j + 1) * (k + 1)].to_vec());
+            // (An anchor that sees few lights has none: see `run_recording`.)
+            if let Some(v) = lamp_far.get(j * (k + 1)..(j + 1) * (k + 1))
+                && !v[k].is_nan()
+            {
+                self.lamp_far.insert(i, v.to_vec());
             }
         }
         stats.culled_pairs += dropped;
@@ -948,8 +950,14 @@ fn run_recording(
         _ => (None, None),
     };
     // All the light from beyond [`Exact::lamp_far`], for the pixels that
-    // walk everywhere.
+    // walk everywhere and see more than half of [`FAR_LAMPS`] lights (the
+    // others' open angle NaN): only a block whose list holds more than
+    // that many takes it from its corners, and an anchor that sees few
+    // lights is rarely the corner of one (a block with a corner that has
+    // none sweeps as without many lights). On the shooter map (70 lights,
+    // none of its lists with more than 32) that spared every anchor's.
     let lamp_far_r = exact.lamp_far.filter(|_| near.is_none());
+    let g = exact.geometry;
     let mut lamp_far = vec![
         0.0;
         if lamp_far_r.is_some() {
@@ -988,6 +996,7 @@ fn run_recording(
                 let mut f = vec![0.0; if exact.far.is_some() { k + 1 } else { 0 }];
                 let mut o = vec![0.0; if record { k + 1 } else { 0 }];
                 let mut lf = vec![0.0; if lamp_far_r.is_some() { k + 1 } else { 0 }];
+                let lamp_far_r = lamp_far_r.filter(|_| sees_lights(g, rad, &edges, FAR_LAMPS / 2));
                 let (c, sig, dropped) = BUFFERS.with(|b| {
                     let b = &mut *b.borrow_mut();
                     let dropped = within_reach(exact, at, spans, &mut b.lit);
@@ -1038,6 +1047,8 @@ fn run_recording(
                         let part = Part::Outside(r);
                         pixel_light_part(light, at, &b.lit, &mut lf[..k], &mut b.scratch, part);
                         lf[k] = std::f64::consts::TAU - b.scratch.near_angle;
+                    } else if let Some(open) = lf.get_mut(k) {
+                        *open = f64::NAN;
                     }
                     (c, sig, dropped)
                 });
@@ -1081,6 +1092,22 @@ fn run_recording(
         counts,
     };
     (pass, seen, far, beyond, lamp_far, dropped)
+}
+
+/// Whether the edges `seen` hold edges of more than `n` lights (loops
+/// that emit).
+fn sees_lights(g: &Geometry, rad: &super::Radiosity, seen: &[u32], n: usize) -> bool {
+    let mut loops: Vec<u32> = Vec::with_capacity(n + 1);
+    for &e in seen {
+        let l = g.edges[e as usize].loop_id;
+        if rad.edge_emits[e as usize] && !loops.contains(&l) {
+            loops.push(l);
+            if loops.len() > n {
+                return true;
+            }
+        }
+    }
+    false
 }
 
 /// Gathers every one of `pixels` as [`Lists::gather_walking`] does, with
