@@ -424,3 +424,53 @@ fn many_lights_take_their_far_light_from_the_corners() {
         worst.0
     );
 }
+
+/// A block takes its lights' far light from its corners only where that is
+/// at most `gather::LAMP_SHARE` of each corner's light: in a long hall with
+/// black walls whose 144 lights stand at one end, the pixels far from all
+/// of them (lit only from beyond `gather::LAMP_FAR`) read exactly what they
+/// read without the far split, while pixels among the lights take it
+/// (without the share's test, those far pixels are interpolated too, and
+/// the test fails: checked).
+#[test]
+fn far_light_of_many_lights_only_where_it_is_a_small_share() {
+    let (w, h) = (700, 64);
+    let mut rows = room(w, h);
+    for x in (4..64).step_by(5) {
+        for y in (4..60).step_by(5) {
+            rows[y].replace_range(x..x + 1, "L");
+        }
+    }
+    let rows = refs(&rows);
+    let lvl = ascii(&rows, &[('#', wall(0.0)), ('L', light(4.0, 0.0))]);
+    let mut s = Settings::new(Quality::Normal);
+    s.knobs.lattice = None;
+    let split = bake(&lvl, &s, &quiet).unwrap();
+    let said = split
+        .report
+        .skipped
+        .iter()
+        .find(|k| k.effect == "far light of many lights")
+        .expect("the report names the lights' far light");
+    let n: usize = said.reason.split(' ').next().unwrap().parse().unwrap();
+    assert!(n > 1000, "only {n} pixels: {}", said.reason);
+    s.knobs.far = Some(f64::INFINITY);
+    let whole = bake(&lvl, &s, &quiet).unwrap();
+    let (a, b) = (red(&split, &lvl), red(&whole, &lvl));
+    let top = b.iter().flatten().copied().fold(0.0, f64::max);
+    let mut far = 0;
+    for (i, (x, y)) in a.iter().zip(&b).enumerate() {
+        let (Some(x), Some(y)) = (x, y) else { continue };
+        if i % w < 220 {
+            continue;
+        }
+        far += 1;
+        assert!(
+            (x - y).abs() <= 1e-9 * top,
+            "pixel ({}, {}) {x} with the split, {y} without",
+            i % w,
+            i / w
+        );
+    }
+    assert!(far > 5000);
+}

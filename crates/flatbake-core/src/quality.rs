@@ -84,11 +84,12 @@ pub struct Knobs {
     /// ([`crate::gather::GatherOptions::far`]);
     /// a pixel beside a wall takes it from the corners of its block too,
     /// and its full query goes past this distance only towards lights.
-    /// Direct light stays exact, but on a level of many lights, where a
-    /// swept pixel's list holds more than
+    /// Direct light stays exact, but on a level of many lights that is not
+    /// dense, where a swept pixel's list holds more than
     /// [`crate::gather::FAR_LAMPS`] of them: there it takes all its light
     /// from beyond [`crate::gather::LAMP_FAR`] px from its block's
-    /// corners, the lights' too. `None`: every swept pixel sweeps its
+    /// corners, the lights' too, where that is at most
+    /// [`crate::gather::LAMP_SHARE`] of each corner's light. `None`: every swept pixel sweeps its
     /// whole list, and every full query wants all the light.
     #[serde(default)]
     pub far: Option<f64>,

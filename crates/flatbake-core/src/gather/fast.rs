@@ -780,7 +780,15 @@ pub fn gather_with_moments(
     );
     // With the far split on a level of many lights: where a block's
     // sweep takes its lights' far light from its corners too.
+    // (Only with a far split nearer than [`LAMP_FAR`]: a split at an
+    // infinite distance gathers everything as without one.)
+    let lamp_far_px = (LAMP_FAR * geometry.unit.max(1) as i32) as f64;
+    // And not on a dense level, where a far light's beams through the gaps
+    // between pillars are as narrow as a pixel (measured on a grove of
+    // pillars: interpolated, whole beams went missing).
     let lamp_far = far
+        .filter(|&r| r < lamp_far_px)
+        .filter(|_| super::local::DENSE * geometry.edges.len() < pixels.len())
         .filter(|_| {
             let mut loops: Vec<u32> = (0..geometry.edges.len())
                 .filter(|&e| rad.edge_emits[e])
@@ -790,7 +798,7 @@ pub fn gather_with_moments(
             loops.dedup();
             loops.len() > super::local::FAR_LAMPS
         })
-        .map(|_| (LAMP_FAR * geometry.unit.max(1) as i32) as f64);
+        .map(|_| lamp_far_px);
     let light = Lighting {
         edges: &geometry.edges,
         patches,
@@ -869,7 +877,9 @@ pub(super) struct Exact<'a> {
 
 /// Painted pixels beyond which a swept pixel whose block's list holds more
 /// than [`super::FAR_LAMPS`] lights takes all its light, the lights' too,
-/// from its block's corners (transport.md, Far light of many lights).
+/// from its block's corners, on a level that is not dense and where that
+/// is at most [`super::LAMP_SHARE`] of each corner's light (transport.md,
+/// Far light of many lights).
 /// Measured on the light field (200 lights, falloff 43; docs/performance.md):
 /// 32, 64, 96, 128 and 192 px took its gather from 3.6 s to 1.16, 1.33,
 /// 1.51, 1.79 and 2.44 s, at 1.50, 0.59, 0.32, 0.23 and 0.18 % from

@@ -1046,7 +1046,16 @@ fn run_recording(
                     if let Some(r) = lamp_far_r {
                         let part = Part::Outside(r);
                         pixel_light_part(light, at, &b.lit, &mut lf[..k], &mut b.scratch, part);
-                        lf[k] = std::f64::consts::TAU - b.scratch.near_angle;
+                        // Only where it is a small share of the anchor's
+                        // light in every component.
+                        let share = (0..k)
+                            .map(|c| lf[c] / acc[c].max(f64::MIN_POSITIVE))
+                            .fold(0.0, f64::max);
+                        lf[k] = if share <= LAMP_SHARE {
+                            std::f64::consts::TAU - b.scratch.near_angle
+                        } else {
+                            f64::NAN
+                        };
                     } else if let Some(open) = lf.get_mut(k) {
                         *open = f64::NAN;
                     }
@@ -1427,7 +1436,7 @@ fn near_list(g: &Geometry, list: &[u32], block: Rect, r: f64, kept: &mut Vec<u32
 /// cost several near walks each; on a real map the near walk costs about
 /// what the small block's sweep and anchors do (the shooter map 3 %
 /// slower, the courtyard 2 %).
-const DENSE: usize = 64;
+pub(super) const DENSE: usize = 64;
 
 /// At most this many lights (loops that emit) on a block's list for its
 /// sweep to keep only the edges that may hide a light (`far_list`: each
@@ -1435,6 +1444,11 @@ const DENSE: usize = 64;
 /// a level of more lights, a list with more takes all its light from
 /// beyond [`super::LAMP_FAR`] from its block's corners, the lights' too.
 pub const FAR_LAMPS: usize = 32;
+
+/// The largest share of an anchor's light (in any component) that its
+/// light from beyond [`super::LAMP_FAR`] may be for the blocks it is a
+/// corner of to take theirs from it (`Exact::lamp_far`).
+pub const LAMP_SHARE: f64 = 0.25;
 
 #[cfg(test)]
 mod tests {
