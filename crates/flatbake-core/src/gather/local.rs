@@ -29,11 +29,11 @@
 //! [`super::fast::OUTER`], and past it towards the lights; the light
 //! reflected to it from farther is its coarse block's corners'
 //! ([`Lists::gather`]; transport.md, Far reflected light). On a level of
-//! many lights, a swept pixel whose block's list holds more than
-//! [`FAR_LAMPS`] of them sweeps only the edges within
+//! many lights that is not dense, a swept pixel whose block's list holds
+//! more than [`FAR_LAMPS`] of them sweeps only the edges within
 //! [`super::LAMP_FAR`] and takes all the light from beyond, the lights'
-//! too, from its block's corners (transport.md, Far light of many
-//! lights).
+//! too, from its block's corners, where that is at most [`LAMP_SHARE`]
+//! of each corner's light (transport.md, Far light of many lights).
 
 use rayon::prelude::*;
 
@@ -544,7 +544,8 @@ impl Lists {
                 self.far
                     .insert(i, far[j * (k + 1)..(j + 1) * (k + 1)].to_vec());
             }
-            // (An anchor that sees few lights has none: see `run_recording`.)
+            // (An anchor that sees few lights, or whose far light is more
+            // than a small share of its light, has none: `run_recording`.)
             if let Some(v) = lamp_far.get(j * (k + 1)..(j + 1) * (k + 1))
                 && !v[k].is_nan()
             {
@@ -950,12 +951,13 @@ fn run_recording(
         _ => (None, None),
     };
     // All the light from beyond [`Exact::lamp_far`], for the pixels that
-    // walk everywhere and see more than half of [`FAR_LAMPS`] lights (the
-    // others' open angle NaN): only a block whose list holds more than
-    // that many takes it from its corners, and an anchor that sees few
-    // lights is rarely the corner of one (a block with a corner that has
-    // none sweeps as without many lights). On the shooter map (70 lights,
-    // none of its lists with more than 32) that spared every anchor's.
+    // walk everywhere and see more than half of [`FAR_LAMPS`] lights, where
+    // it is at most [`LAMP_SHARE`] of their light (the others' open angle
+    // NaN: they have none). Only a block whose list holds more than
+    // [`FAR_LAMPS`] lights takes it from its corners, and an anchor that
+    // sees few lights is rarely the corner of one; a block with a corner
+    // that has none sweeps as without many lights. On the shooter map (70
+    // lights, none of its lists with more than 32) no anchor gathers it.
     let lamp_far_r = exact.lamp_far.filter(|_| near.is_none());
     let g = exact.geometry;
     let mut lamp_far = vec![
@@ -1441,8 +1443,9 @@ pub(super) const DENSE: usize = 64;
 /// At most this many lights (loops that emit) on a block's list for its
 /// sweep to keep only the edges that may hide a light (`far_list`: each
 /// far edge is tested against each light's hull). With the far split, on
-/// a level of more lights, a list with more takes all its light from
-/// beyond [`super::LAMP_FAR`] from its block's corners, the lights' too.
+/// a level of more lights that is not dense, a list with more takes all
+/// its light from beyond [`super::LAMP_FAR`] from its block's corners, the
+/// lights' too, where they have it ([`LAMP_SHARE`]).
 pub const FAR_LAMPS: usize = 32;
 
 /// The largest share of an anchor's light (in any component) that its
