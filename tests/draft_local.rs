@@ -395,6 +395,12 @@ fn many_lights_take_their_far_light_from_the_corners() {
     let split = bake(&lvl, &s, &quiet).unwrap();
     let n = counted(&split, "far light of many lights")
         .expect("the report names the lights' far light");
+    // And so does its line in a level designer's words.
+    let plain = split.report.plain_skips();
+    assert!(
+        plain.iter().any(|p| p.contains("lamps far away")),
+        "{plain:?}"
+    );
     let floor = lvl.cells.iter().filter(|c| **c == Cell::Floor).count();
     assert!(2 * n > floor, "only {n} of {floor} pixels");
     s.knobs.far = None;

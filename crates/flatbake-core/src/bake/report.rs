@@ -258,6 +258,9 @@ impl Report {
                 "falloff reach" => push("very faint light far from the lamps".to_string()),
                 "distant patches" => push("fine detail of distant bounce light".to_string()),
                 "pixels" => push("smooth floor interpolated between gathered pixels".to_string()),
+                "far light of many lights" => {
+                    push("the light of lamps far away blended between gathered pixels".to_string())
+                }
                 "patches" => push("walls of sealed regions no light reaches".to_string()),
                 _ => {}
             }
