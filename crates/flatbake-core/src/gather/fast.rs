@@ -778,14 +778,13 @@ pub fn gather_with_moments(
             )
         },
     );
-    // With the far split on a level of many lights: where a block's
-    // sweep takes its lights' far light from its corners too.
-    // (Only with a far split nearer than [`LAMP_FAR`]: a split at an
-    // infinite distance gathers everything as without one.)
+    // Where a block's sweep takes its lights' far light from its corners
+    // too: with a far split nearer than [`LAMP_FAR`] (a split at an
+    // infinite distance gathers everything as without one), on a level of
+    // many lights that is not dense (on a dense one a far light's beams
+    // through the gaps between pillars are a pixel wide: measured on a
+    // grove of pillars, interpolated, whole beams went missing).
     let lamp_far_px = (LAMP_FAR * geometry.unit.max(1) as i32) as f64;
-    // And not on a dense level, where a far light's beams through the gaps
-    // between pillars are as narrow as a pixel (measured on a grove of
-    // pillars: interpolated, whole beams went missing).
     let lamp_far = far
         .filter(|&r| r < lamp_far_px)
         .filter(|_| super::local::DENSE * geometry.edges.len() < pixels.len())
