@@ -176,10 +176,12 @@ pub struct GatherOptions<'a> {
     /// interpolated, and sweeps only the edges within this distance of its
     /// block, the lights, and the edges that may hide a light from some
     /// pixel of the block, where that leaves out enough of its list (else
-    /// the whole list). Direct light stays exact, but where the list holds
-    /// more than [`super::FAR_LAMPS`] lights: then all the light from
-    /// beyond [`LAMP_FAR`], the lights' too, comes from the corners
-    /// (docs/transport.md, Far light of many lights). A pixel with no block of
+    /// the whole list). Direct light stays exact, but on a level that is
+    /// not dense where the list holds more than [`super::FAR_LAMPS`]
+    /// lights: then all the light from beyond [`LAMP_FAR`], the lights'
+    /// too, comes from the corners where it is at most
+    /// [`super::LAMP_SHARE`] of each corner's light (docs/transport.md, Far
+    /// light of many lights). A pixel with no block of
     /// floor around it (on a dense level, no block of [`Self::anchors`]
     /// px) takes its far reflected light from the corners of its
     /// [`Self::anchors`] block the same way, where they are floor of its
@@ -299,6 +301,23 @@ fn within(r: f64, d: f64, foot: f64) -> Option<(f64, f64)> {
     })
 }
 
+/// The part of `[s0, s1]` along that edge within `r` of `p` ([`within`]),
+/// if it is not empty.
+fn part_within(r: f64, d: f64, foot: f64, s0: f64, s1: f64) -> Option<(f64, f64)> {
+    let (a, b) = within(r, d, foot)?;
+    let (s0, s1) = (s0.max(a), s1.min(b));
+    (s0 < s1).then_some((s0, s1))
+}
+
+/// The parts of `[s0, s1]` along that edge beyond `r` of `p` (before and
+/// after the part within it), those that are not empty.
+fn parts_beyond(r: f64, d: f64, foot: f64, s0: f64, s1: f64) -> impl Iterator<Item = (f64, f64)> {
+    let (a, b) = within(r, d, foot).unwrap_or((s1, s1));
+    [(s0, s1.min(a)), (s0.max(b), s1)]
+        .into_iter()
+        .filter(|&(s0, s1)| s0 < s1)
+}
+
 /// [`pixel_light`], of the part of the light that `part` says.
 pub(super) fn pixel_light_part(
     light: &Lighting,
@@ -342,11 +361,10 @@ pub(super) fn pixel_light_part(
             } else {
                 p[0]
             };
-            if let Some((a, b)) = within(r, d, foot) {
-                let (s0, s1) = (span.s0.max(a), span.s1.min(b));
-                if s0 < s1 && d > 0.0 {
-                    sc.near_angle += ((s1 - foot) / d).atan() - ((s0 - foot) / d).atan();
-                }
+            if let Some((s0, s1)) = part_within(r, d, foot, span.s0, span.s1)
+                && d > 0.0
+            {
+                sc.near_angle += ((s1 - foot) / d).atan() - ((s0 - foot) / d).atan();
             }
         }
         if !(rad.edge_emits[ei] || rad.edge_reflects[ei]) {
@@ -373,19 +391,13 @@ pub(super) fn pixel_light_part(
             match part {
                 Part::All | Part::Near(_) => emit(span.s0, span.s1),
                 Part::Inside(r) => {
-                    if let Some((a, b)) = within(r, d, foot) {
-                        let (s0, s1) = (span.s0.max(a), span.s1.min(b));
-                        if s0 < s1 {
-                            emit(s0, s1);
-                        }
+                    if let Some((s0, s1)) = part_within(r, d, foot, span.s0, span.s1) {
+                        emit(s0, s1);
                     }
                 }
                 Part::Outside(r) => {
-                    let (a, b) = within(r, d, foot).unwrap_or((span.s1, span.s1));
-                    for (s0, s1) in [(span.s0, span.s1.min(a)), (span.s0.max(b), span.s1)] {
-                        if s0 < s1 {
-                            emit(s0, s1);
-                        }
+                    for (s0, s1) in parts_beyond(r, d, foot, span.s0, span.s1) {
+                        emit(s0, s1);
                     }
                 }
                 Part::Far(_) | Part::Band(..) => {}
@@ -395,33 +407,23 @@ pub(super) fn pixel_light_part(
             match part {
                 Part::All => reflected_pieces(light, span, &line, foot, sc, &mut counts),
                 Part::Near(r) | Part::Inside(r) => {
-                    if let Some((a, b)) = within(r, d, foot) {
-                        let (s0, s1) = (span.s0.max(a), span.s1.min(b));
-                        if s0 < s1 {
-                            let near = Span { s0, s1, ..*span };
-                            reflected_pieces(light, &near, &line, foot, sc, &mut counts);
-                        }
+                    if let Some((s0, s1)) = part_within(r, d, foot, span.s0, span.s1) {
+                        let near = Span { s0, s1, ..*span };
+                        reflected_pieces(light, &near, &line, foot, sc, &mut counts);
                     }
                 }
                 Part::Far(r) | Part::Outside(r) => {
-                    let (a, b) = within(r, d, foot).unwrap_or((span.s1, span.s1));
-                    for (s0, s1) in [(span.s0, span.s1.min(a)), (span.s0.max(b), span.s1)] {
-                        if s0 < s1 {
-                            let far = Span { s0, s1, ..*span };
-                            reflected_pieces(light, &far, &line, foot, sc, &mut counts);
-                        }
+                    for (s0, s1) in parts_beyond(r, d, foot, span.s0, span.s1) {
+                        let far = Span { s0, s1, ..*span };
+                        reflected_pieces(light, &far, &line, foot, sc, &mut counts);
                     }
                 }
                 Part::Band(r0, r1) => {
                     // Within `r1`, less the part within `r0` (as `Far`).
-                    if let Some((a1, b1)) = within(r1, d, foot) {
-                        let (lo, hi) = (span.s0.max(a1), span.s1.min(b1));
-                        let (a, b) = within(r0, d, foot).unwrap_or((hi, hi));
-                        for (s0, s1) in [(lo, hi.min(a)), (lo.max(b), hi)] {
-                            if s0 < s1 {
-                                let band = Span { s0, s1, ..*span };
-                                reflected_pieces(light, &band, &line, foot, sc, &mut counts);
-                            }
+                    if let Some((lo, hi)) = part_within(r1, d, foot, span.s0, span.s1) {
+                        for (s0, s1) in parts_beyond(r0, d, foot, lo, hi) {
+                            let band = Span { s0, s1, ..*span };
+                            reflected_pieces(light, &band, &line, foot, sc, &mut counts);
                         }
                     }
                 }
@@ -789,13 +791,8 @@ pub fn gather_with_moments(
         .filter(|&r| r < lamp_far_px)
         .filter(|_| super::local::DENSE * geometry.edges.len() < pixels.len())
         .filter(|_| {
-            let mut loops: Vec<u32> = (0..geometry.edges.len())
-                .filter(|&e| rad.edge_emits[e])
-                .map(|e| geometry.edges[e].loop_id)
-                .collect();
-            loops.sort_unstable();
-            loops.dedup();
-            loops.len() > super::local::FAR_LAMPS
+            let every = 0..geometry.edges.len() as u32;
+            super::local::sees_lights(geometry, rad, every, super::local::FAR_LAMPS)
         })
         .map(|_| lamp_far_px);
     let light = Lighting {

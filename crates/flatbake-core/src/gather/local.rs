@@ -998,7 +998,8 @@ fn run_recording(
                 let mut f = vec![0.0; if exact.far.is_some() { k + 1 } else { 0 }];
                 let mut o = vec![0.0; if record { k + 1 } else { 0 }];
                 let mut lf = vec![0.0; if lamp_far_r.is_some() { k + 1 } else { 0 }];
-                let lamp_far_r = lamp_far_r.filter(|_| sees_lights(g, rad, &edges, FAR_LAMPS / 2));
+                let lamp_far_r = lamp_far_r
+                    .filter(|_| sees_lights(g, rad, edges.iter().copied(), FAR_LAMPS / 2));
                 let (c, sig, dropped) = BUFFERS.with(|b| {
                     let b = &mut *b.borrow_mut();
                     let dropped = within_reach(exact, at, spans, &mut b.lit);
@@ -1107,9 +1108,14 @@ fn run_recording(
 
 /// Whether the edges `seen` hold edges of more than `n` lights (loops
 /// that emit).
-fn sees_lights(g: &Geometry, rad: &super::Radiosity, seen: &[u32], n: usize) -> bool {
+pub(super) fn sees_lights(
+    g: &Geometry,
+    rad: &super::Radiosity,
+    seen: impl IntoIterator<Item = u32>,
+    n: usize,
+) -> bool {
     let mut loops: Vec<u32> = Vec::with_capacity(n + 1);
-    for &e in seen {
+    for e in seen {
         let l = g.edges[e as usize].loop_id;
         if rad.edge_emits[e as usize] && !loops.contains(&l) {
             loops.push(l);
