@@ -390,11 +390,13 @@ pub(super) fn pixel_light_part(
             };
             match part {
                 Part::All | Part::Near(_) => emit(span.s0, span.s1),
-                Part::Inside(r) => {
-                    if let Some((s0, s1)) = part_within(r, d, foot, span.s0, span.s1) {
-                        emit(s0, s1);
-                    }
-                }
+                // One integral per emitting span, empty if none of it is
+                // within `r`: a pixel's [`signature`] reads them in the
+                // spans' order.
+                Part::Inside(r) => match part_within(r, d, foot, span.s0, span.s1) {
+                    Some((s0, s1)) => emit(s0, s1),
+                    None => emit(span.s0, span.s0),
+                },
                 Part::Outside(r) => {
                     for (s0, s1) in parts_beyond(r, d, foot, span.s0, span.s1) {
                         emit(s0, s1);
@@ -431,7 +433,8 @@ pub(super) fn pixel_light_part(
         }
     }
     let fall = falloff.is_some();
-    // Uniform emission: one integral per emitting span.
+    // Uniform emission: one integral per emitting span (with `Outside`,
+    // one per part beyond the distance; none with `Far` and `Band`).
     sc.em.between(&sc.em_end, fall, &mut sc.em_g);
     for (&ei, &g) in sc.em_edge.iter().zip(&sc.em_g) {
         let g = g / TAU;
@@ -1056,7 +1059,10 @@ impl Exact<'_> {
     }
 }
 
-/// What a pixel's direct light is made of, as a hash: the emitting solids
+/// What a pixel's direct light is made of, as a hash (read after
+/// [`pixel_light_part`] with [`Part::All`], [`Part::Near`] or
+/// [`Part::Inside`], which queue one integral per emitting span, in the
+/// spans' order): the emitting solids
 /// (loops) it sees, and which ends of their visible stretches are cut off
 /// by something in front, counting only stretches that add at least
 /// `relative` of the pixel's light. Two pixels with the same signature see
@@ -1125,7 +1131,8 @@ mod tests {
     /// them), with falloff and without; `Band` and `Far` at `r0` report the
     /// same angle within `r0`, and neither holds direct light; `Inside`
     /// and `Outside` at either distance sum to `All` too, and split the
-    /// direct light that `Near` holds whole.
+    /// direct light that `Near` holds whole; `Inside` queues one integral
+    /// per emitting span, as [`signature`] reads them.
     #[test]
     fn near_band_and_far_add_up_to_the_whole() {
         let side = 40;
@@ -1233,8 +1240,13 @@ mod tests {
                     assert_eq!(band_angle, far_angle, "{falloff:?} at {p:?}");
                     checked += usize::from(band > 0.0 && far > 0.0);
                     // `Inside` and `Outside` split the direct light too.
+                    let emitting = spans.iter().filter(|s| rad.edge_emits[s.edge as usize]);
+                    let emitting = emitting.count();
                     for r in [r0, r1] {
                         let (inside, inside_angle) = part(Part::Inside(r), &mut sc);
+                        // One integral per emitting span, as `signature`
+                        // reads them.
+                        assert_eq!(sc.em_edge.len(), emitting, "{falloff:?} at {p:?}, {r}");
                         let (outside, outside_angle) = part(Part::Outside(r), &mut sc);
                         let (near, _) = part(Part::Near(r), &mut sc);
                         let (far, _) = part(Part::Far(r), &mut sc);
