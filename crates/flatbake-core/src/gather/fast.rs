@@ -792,7 +792,7 @@ pub fn gather_with_moments(
     let lamp_far_px = (LAMP_FAR * geometry.unit.max(1) as i32) as f64;
     let lamp_far = far
         .filter(|&r| r < lamp_far_px)
-        .filter(|_| super::local::DENSE * geometry.edges.len() < pixels.len())
+        .filter(|_| !super::local::is_dense(geometry, pixels.len()))
         .filter(|_| {
             let every = 0..geometry.edges.len() as u32;
             super::local::sees_lights(geometry, rad, every, super::local::FAR_LAMPS)

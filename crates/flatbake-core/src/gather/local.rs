@@ -331,7 +331,7 @@ impl Lists {
             let c = corner_offsets(step).map(|(dx, dy)| floor_of(x0 + dx, y0 + dy, c0));
             Some([c[0]?, c[1]?, c[2]?, c[3]?])
         };
-        let dense = DENSE * g.edges.len() >= pixels.len();
+        let dense = is_dense(g, pixels.len());
         // The block's corners, or on a dense level three of them where the
         // fourth is a pillar of one pixel (its eight neighbours floor of
         // the region: a longer wall there would part the far light of the
@@ -531,9 +531,10 @@ impl Lists {
         let (pass, seen, far, beyond, lamp_far, dropped) =
             run_recording(exact, &pts, signatures, how);
         for ((j, &i), list) in all.iter().enumerate().zip(seen) {
+            // Anchor `j`'s values per component, then an open angle.
+            let row = j * (k + 1)..(j + 1) * (k + 1);
             if record[j] {
-                self.outer
-                    .insert(i, beyond[j * (k + 1)..(j + 1) * (k + 1)].to_vec());
+                self.outer.insert(i, beyond[row.clone()].to_vec());
             }
             if j >= anchors.len() {
                 continue;
@@ -541,12 +542,11 @@ impl Lists {
             store(&pass, j, i, k, &mut out);
             self.seen.insert(i, list);
             if !far.is_empty() {
-                self.far
-                    .insert(i, far[j * (k + 1)..(j + 1) * (k + 1)].to_vec());
+                self.far.insert(i, far[row.clone()].to_vec());
             }
             // (An anchor that sees few lights, or whose far light is more
             // than a small share of its light, has none: `run_recording`.)
-            if let Some(v) = lamp_far.get(j * (k + 1)..(j + 1) * (k + 1))
+            if let Some(v) = lamp_far.get(row)
                 && !v[k].is_nan()
             {
                 self.lamp_far.insert(i, v.to_vec());
@@ -1445,6 +1445,12 @@ fn near_list(g: &Geometry, list: &[u32], block: Rect, r: f64, kept: &mut Vec<u32
 /// what the small block's sweep and anchors do (the shooter map 3 %
 /// slower, the courtyard 2 %).
 pub(super) const DENSE: usize = 64;
+
+/// Whether a level of geometry `g` gathering `floor` pixels is dense: at
+/// least one edge per [`DENSE`] floor pixels.
+pub(super) fn is_dense(g: &Geometry, floor: usize) -> bool {
+    DENSE * g.edges.len() >= floor
+}
 
 /// At most this many lights (loops that emit) on a block's list for its
 /// sweep to keep only the edges that may hide a light (`far_list`: each
