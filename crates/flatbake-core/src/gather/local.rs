@@ -37,7 +37,7 @@
 
 use rayon::prelude::*;
 
-use crate::geometry::Geometry;
+use crate::geometry::{Edge, Geometry};
 use crate::visibility::{Reaches, Span, Sweeper, View, Viewpoint, VisitStats, Wanted, centre};
 
 use super::fast::{
@@ -528,8 +528,14 @@ impl Lists {
             Some((r, _)) if !fine.is_empty() => Outer::Record(*r, &record),
             _ => Outer::None,
         };
-        let (pass, seen, far, beyond, lamp_far, dropped) =
-            run_recording(exact, &pts, signatures, how);
+        let Recorded {
+            pass,
+            seen,
+            far,
+            beyond,
+            lamp_far,
+            dropped,
+        } = run_recording(exact, &pts, signatures, how);
         for ((j, &i), list) in all.iter().enumerate().zip(seen) {
             // Anchor `j`'s values per component, then an open angle.
             let row = j * (k + 1)..(j + 1) * (k + 1);
@@ -567,7 +573,13 @@ impl Lists {
                 .unwrap_or_default();
             let pts: Vec<[i32; 2]> = fine.iter().map(|&(i, _)| pixels[i]).collect();
             let how = Outer::Near(*r, reaches, &from);
-            let (pass, seen, far, _, _, dropped) = run_recording(exact, &pts, signatures, how);
+            let Recorded {
+                pass,
+                seen,
+                far,
+                dropped,
+                ..
+            } = run_recording(exact, &pts, signatures, how);
             for ((j, &(i, _)), list) in fine.iter().enumerate().zip(seen) {
                 store(&pass, j, i, k, &mut out);
                 self.seen.insert(i, list);
@@ -893,29 +905,39 @@ enum Outer<'l> {
     Near(f64, &'l Reaches<'l>, &'l [(FarFrom, [&'l Vec<f64>; 4])]),
 }
 
-/// What [`Exact::run`] returns for `pixels`, with, per pixel, every edge it
-/// sees (lit or not, sorted), with [`Exact::far`] the light reflected to it
-/// from beyond that distance (per pixel and component, then the angle open
-/// beyond it, else empty), with [`Outer::Record`] likewise the light from
-/// beyond its distance (for the pixels marked; else 0), and the number of
-/// spans out of reach. The light is `Exact::run`'s: the query returns every
-/// visible span and those out of reach are left out here instead of in the
-/// query. With [`Outer::Near`], the light and the far light are the walk's
-/// within the outer distance, plus the interpolation beyond it.
-#[allow(clippy::type_complexity)]
+/// What [`run_recording`] finds for its pixels.
+struct Recorded {
+    /// The light, as [`Exact::run`] gives it. The query returns every
+    /// visible span and those out of reach are left out here instead of
+    /// in the query. With [`Outer::Near`], the light and the far light are
+    /// the walk's within the outer distance, plus the interpolation
+    /// beyond it.
+    pass: super::fast::Pass,
+    /// Per pixel, every edge it sees (lit or not, sorted).
+    seen: Vec<Vec<u32>>,
+    /// With [`Exact::far`], the light reflected to each pixel from beyond
+    /// that distance (per pixel its components, then the angle open
+    /// beyond it); else empty.
+    far: Vec<f64>,
+    /// With [`Outer::Record`], likewise the light from beyond its
+    /// distance (for the pixels marked; 0 for the others); else empty.
+    beyond: Vec<f64>,
+    /// With [`Exact::lamp_far`], likewise all the light from beyond it,
+    /// the lights' too; the open angle NaN where a pixel has none (it sees
+    /// few lights, or that light is more than [`LAMP_SHARE`] of its own);
+    /// else empty.
+    lamp_far: Vec<f64>,
+    /// Spans out of reach.
+    dropped: u64,
+}
+
+/// [`Exact::run`] for `pixels`, recording what [`Recorded`] holds.
 fn run_recording(
     exact: &Exact,
     pixels: &[[i32; 2]],
     signatures: Option<f64>,
     outer: Outer,
-) -> (
-    super::fast::Pass,
-    Vec<Vec<u32>>,
-    Vec<f64>,
-    Vec<f64>,
-    Vec<f64>,
-    u64,
-) {
+) -> Recorded {
     let (light, rad) = (exact.light, exact.light.rad);
     let k = rad.components;
     let km = if exact.directional { 2 * k } else { 0 };
@@ -1103,7 +1125,14 @@ fn run_recording(
         stats: VisitStats::default(),
         counts,
     };
-    (pass, seen, far, beyond, lamp_far, dropped)
+    Recorded {
+        pass,
+        seen,
+        far,
+        beyond,
+        lamp_far,
+        dropped,
+    }
 }
 
 /// Whether the edges `seen` hold edges of more than `n` lights (loops
@@ -1381,7 +1410,7 @@ fn far_list(
                 None if lamps.len() < FAR_LAMPS => lamps.push((edge.loop_id, at)),
                 None => return FarCut::ManyLights,
             }
-        } else if Rect::of_edge(edge).distance_sq(block) > r2 {
+        } else if !near_block(edge, block, r2) {
             far += 1;
         }
     }
@@ -1390,7 +1419,7 @@ fn far_list(
     }
     for &e in list {
         let edge = &g.edges[e as usize];
-        let keep = rad.edge_emits[e as usize] || Rect::of_edge(edge).distance_sq(block) <= r2 || {
+        let keep = rad.edge_emits[e as usize] || near_block(edge, block, r2) || {
             let (p, q) = (edge.a.map(f64::from), edge.b.map(f64::from));
             lamps
                 .iter()
@@ -1432,8 +1461,14 @@ fn near_list(g: &Geometry, list: &[u32], block: Rect, r: f64, kept: &mut Vec<u32
     kept.extend(
         list.iter()
             .copied()
-            .filter(|&e| Rect::of_edge(&g.edges[e as usize]).distance_sq(block) <= r2),
+            .filter(|&e| near_block(&g.edges[e as usize], block, r2)),
     );
+}
+
+/// Whether `edge` comes within the distance whose square is `r2` of
+/// `block` ([`far_list`], [`near_list`]).
+fn near_block(edge: &Edge, block: Rect, r2: f64) -> bool {
+    Rect::of_edge(edge).distance_sq(block) <= r2
 }
 
 /// A pixel with no block of the spacing that is floor around it walks
