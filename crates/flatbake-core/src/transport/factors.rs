@@ -716,10 +716,13 @@ fn merge_points_in(
     let sum: f64 = row.iter().map(|e| e.1).sum();
     let mut last = None;
     if sliver > 0.0 && row.len() > 1 {
-        by_value.clear();
-        by_value.extend(row.iter().map(|e| (e.1, e.0)));
-        by_value.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         let (budget, mut spent) = (sliver * sum, 0.0);
+        // Only entries no larger than the budget can go (the entries are
+        // positive): sorted, they are the head of the whole row sorted,
+        // and usually few.
+        by_value.clear();
+        by_value.extend(row.iter().filter(|e| e.1 <= budget).map(|e| (e.1, e.0)));
+        by_value.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         // The last entry to leave out, as (value, patch): every entry
         // ordered before it goes too.
         for &(v, j) in by_value.iter() {
