@@ -1280,6 +1280,22 @@ impl Walls {
     }
 }
 
+/// The most that [`add_far`] scales a pixel's far light by: the corners'
+/// interpolated far light at most doubled, however much wider than
+/// theirs the pixel's open angle beyond the distance is.
+///
+/// Where the corners lie in pockets of wall and see out past the
+/// distance through a few narrow gaps, their light per radian comes from
+/// those few directions, and the scale would spread it over all of the
+/// pixel's. Unbounded, it made a pixel of wall noise at 10 % at `draft`
+/// ten times too bright (10.5 against 1.10 in `high`: the level's error
+/// from `high` 11.9 % instead of 2.0 %). A cap of 1.5 or 2 changes no
+/// other class's error from `high` at `draft` or `normal` (to 0.001
+/// points); a cap of 1 (never more than the corners) doubles the
+/// courtyard's at `normal`, 0.275 -> 0.624 % (docs/performance.md,
+/// forty-second pass).
+pub const FAR_SCALE: f64 = 2.0;
+
 /// Adds to `acc` the light reflected from far away to a pixel at `(fx,
 /// fy)` (0 to 1) between the corners of its block, whose far light and
 /// open angle are `f` (in the order (x0, y0), (x1, y0), (x0, y1), (x1,
@@ -1287,9 +1303,9 @@ impl Walls {
 /// interpolation, scaled by the angle `open` that the pixel has open
 /// beyond the distance against the corners' interpolated one (a wall
 /// beside the pixel hides more of the far light from it than its corners
-/// see hidden). The interpolation's weights are `w`; where one is
-/// negative (a missing corner's plane, [`FarFrom::add`]), a value below 0
-/// is 0.
+/// see hidden), by at most [`FAR_SCALE`]. The interpolation's weights
+/// are `w`; where one is negative (a missing corner's plane,
+/// [`FarFrom::add`]), a value below 0 is 0.
 fn add_far(acc: &mut [f64], f: &[&Vec<f64>; 4], w: [f64; 4], open: f64) {
     let floor = w.iter().any(|&w| w < 0.0);
     let at = |c: usize| {
@@ -1298,7 +1314,7 @@ fn add_far(acc: &mut [f64], f: &[&Vec<f64>; 4], w: [f64; 4], open: f64) {
     };
     let corners_open = at(acc.len());
     let scale = if corners_open > 0.0 {
-        open / corners_open
+        (open / corners_open).min(FAR_SCALE)
     } else {
         1.0
     };
@@ -1558,6 +1574,39 @@ mod tests {
             let mut acc = [0.0];
             from.add(&f, [x, y], 1.0, &mut acc);
             assert!(acc[0] >= 0.0, "({x}, {y}): {}", acc[0]);
+        }
+    }
+
+    /// A pixel whose open angle beyond the distance is far wider than its
+    /// corners' (they see out through narrow gaps) takes at most
+    /// [`FAR_SCALE`] times their interpolated far light; one whose angle
+    /// is narrower (a wall beside it) takes its share; and within the cap
+    /// the light follows the angle.
+    #[test]
+    fn far_light_scales_with_the_open_angle_up_to_its_cap() {
+        // Each corner: two components, then an open angle of 0.1 rad.
+        let values = vec![3.0, 1.5, 0.1];
+        let f = [&values; 4];
+        let from = FarFrom {
+            corners: [0, 1, 2, 3],
+            origin: [0, 0],
+            step: 4,
+            missing: None,
+        };
+        for (open, scale) in [(6.0, FAR_SCALE), (0.05, 0.5), (0.15, 1.5), (0.1, 1.0)] {
+            for (x, y) in [(0, 0), (1, 2), (3, 3)] {
+                let mut acc = [0.25, 0.0];
+                from.add(&f, [x, y], open, &mut acc);
+                let want = [0.25 + 3.0 * scale, 1.5 * scale];
+                for c in 0..2 {
+                    assert!(
+                        (acc[c] - want[c]).abs() < 1e-12,
+                        "open {open} at ({x}, {y}), component {c}: {} against {}",
+                        acc[c],
+                        want[c]
+                    );
+                }
+            }
         }
     }
 
