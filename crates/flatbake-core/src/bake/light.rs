@@ -213,9 +213,10 @@ fn run(
                 log.skip(
                     "far reflected light",
                     format!(
-                        "{} of {} floor pixels (swept, or beside a wall with a full query that went past {r} px only where a light was left to find) took the light that walls reflect to them from more than {r} px away from the anchors at the corners of their block, interpolated (their direct light exact; a swept pixel saw only the lights, the edges within {r} px and what may hide a light, where that left out enough of its block's list)",
+                        "{} of {} floor pixels (swept, or beside a wall with a full query that went past {r} px only where a light was left to find) took the light that walls reflect to them from more than {r} px away from the anchors at the corners of their block, interpolated and scaled by the angle each has open beyond that distance against theirs, at most {scale} times (their direct light exact; a swept pixel saw only the lights, the edges within {r} px and what may hide a light, where that left out enough of its block's list)",
                         counts.far,
                         reached.len(),
+                        scale = gather::FAR_SCALE,
                     ),
                 );
             }

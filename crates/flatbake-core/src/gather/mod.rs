@@ -23,7 +23,7 @@ pub use fast::{
     Gather, GatherCounts, GatherOptions, LAMP_FAR, Lighting, OUTER, OnProgress, PixelScratch,
     floor_pixels, gather, gather_with_moments, pixel_light,
 };
-pub use local::{FAR_LAMPS, LAMP_SHARE};
+pub use local::{FAR_LAMPS, FAR_SCALE, LAMP_SHARE};
 pub use naive::gather_naive;
 pub use patch_tree::PatchTree;
 
