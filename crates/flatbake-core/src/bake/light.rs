@@ -225,11 +225,12 @@ fn run(
                 log.skip(
                     "far light of many lights",
                     format!(
-                        "{} of {} floor pixels, swept in blocks whose list held more than {} lights, took all the light from more than {r} px away, the lights' own too, from the anchors at the corners of their block, where it was at most {}% of each corner's light, interpolated and scaled by the angle the pixel has open past {r} px (the light from nearer exact; they swept only the edges within {r} px)",
+                        "{} of {} floor pixels, swept in blocks whose list held more than {} lights, took all the light from more than {r} px away, the lights' own too, from the anchors at the corners of their block, where it was at most {}% of each corner's light, interpolated and scaled by the angle the pixel has open past {r} px against theirs, at most {scale} times (the light from nearer exact; they swept only the edges within {r} px)",
                         counts.far_lights,
                         reached.len(),
                         gather::FAR_LAMPS,
                         100.0 * gather::LAMP_SHARE,
+                        scale = gather::FAR_SCALE,
                     ),
                 );
             }

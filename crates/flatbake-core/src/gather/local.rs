@@ -1280,9 +1280,10 @@ impl Walls {
     }
 }
 
-/// The most that [`add_far`] scales a pixel's far light by: the corners'
-/// interpolated far light at most doubled, however much wider than
-/// theirs the pixel's open angle beyond the distance is.
+/// The most that a pixel's far light from its block's corners is scaled
+/// by (`add_far` in `gather/local.rs`): the corners' interpolated far
+/// light at most doubled, however much wider than theirs the pixel's
+/// open angle beyond the distance is.
 ///
 /// Where the corners lie in pockets of wall and see out past the
 /// distance through a few narrow gaps, their light per radian comes from
@@ -1290,10 +1291,11 @@ impl Walls {
 /// pixel's. Unbounded, it made a pixel of wall noise at 10 % at `draft`
 /// ten times too bright (10.5 against 1.10 in `high`: the level's error
 /// from `high` 11.9 % instead of 2.0 %). A cap of 1.5 or 2 changes no
-/// other class's error from `high` at `draft` or `normal` (to 0.001
-/// points); a cap of 1 (never more than the corners) doubles the
-/// courtyard's at `normal`, 0.275 -> 0.624 % (docs/performance.md,
-/// forty-second pass).
+/// other class's error from `high` at full size at `draft` or `normal`
+/// (to 0.001 points; it also bounds the far light of many lights, taken
+/// the same way, which moved nowhere measured); a cap of 1 (never more
+/// than the corners) doubles the courtyard's at `normal`, 0.275 ->
+/// 0.624 % (docs/performance.md, forty-second pass).
 pub const FAR_SCALE: f64 = 2.0;
 
 /// Adds to `acc` the light reflected from far away to a pixel at `(fx,
