@@ -109,15 +109,21 @@ fn normal_sweeps_stay_close_to_the_exact_normal_gather() {
     close_to_exact(Quality::Normal);
 }
 
+/// `quality`'s bake of `lvl`, and the same preset gathered by a full query
+/// at every pixel (no lattice, no block sweeps).
+fn fast_and_exact(lvl: &Level, quality: Quality) -> (Baked, Baked) {
+    let fast = bake(lvl, &Settings::new(quality), &quiet).unwrap();
+    let mut s = Settings::new(quality);
+    s.knobs.lattice = None;
+    s.knobs.anchors = None;
+    (fast, bake(lvl, &s, &quiet).unwrap())
+}
+
 /// `quality`'s bake of the pillared room against the same preset gathered
 /// by a full query at every pixel.
 fn close_to_exact(quality: Quality) {
     let lvl = pillared_room();
-    let fast = bake(&lvl, &Settings::new(quality), &quiet).unwrap();
-    let mut s = Settings::new(quality);
-    s.knobs.lattice = None;
-    s.knobs.anchors = None;
-    let exact = bake(&lvl, &s, &quiet).unwrap();
+    let (fast, exact) = fast_and_exact(&lvl, quality);
     // The sweeps ran, and the report says so.
     let swept = fast
         .report
@@ -228,11 +234,7 @@ fn close_to_exact(quality: Quality) {
 #[test]
 fn draft_far_light_in_wall_noise_stays_near_the_exact_gather() {
     let (lvl, _) = flatbake_synth::noise(128, 0.1, 4, 2).level().unwrap();
-    let fast = bake(&lvl, &Settings::new(Quality::Draft), &quiet).unwrap();
-    let mut s = Settings::new(Quality::Draft);
-    s.knobs.lattice = None;
-    s.knobs.anchors = None;
-    let exact = bake(&lvl, &s, &quiet).unwrap();
+    let (fast, exact) = fast_and_exact(&lvl, Quality::Draft);
     let (_, rms, worst) = off(&red(&fast, &lvl), &red(&exact, &lvl));
     assert!(
         worst.0 < 0.05,

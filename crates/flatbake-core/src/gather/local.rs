@@ -528,38 +528,31 @@ impl Lists {
             Some((r, _)) if !fine.is_empty() => Outer::Record(*r, &record),
             _ => Outer::None,
         };
-        let Recorded {
-            pass,
-            seen,
-            far,
-            beyond,
-            lamp_far,
-            dropped,
-        } = run_recording(exact, &pts, signatures, how);
-        for ((j, &i), list) in all.iter().enumerate().zip(seen) {
+        let rec = run_recording(exact, &pts, signatures, how);
+        for ((j, &i), list) in all.iter().enumerate().zip(rec.seen) {
             // Anchor `j`'s values per component, then an open angle.
             let row = j * (k + 1)..(j + 1) * (k + 1);
             if record[j] {
-                self.outer.insert(i, beyond[row.clone()].to_vec());
+                self.outer.insert(i, rec.beyond[row.clone()].to_vec());
             }
             if j >= anchors.len() {
                 continue;
             }
-            store(&pass, j, i, k, &mut out);
+            store(&rec.pass, j, i, k, &mut out);
             self.seen.insert(i, list);
-            if !far.is_empty() {
-                self.far.insert(i, far[row.clone()].to_vec());
+            if !rec.far.is_empty() {
+                self.far.insert(i, rec.far[row.clone()].to_vec());
             }
             // (An anchor that sees few lights, or whose far light is more
             // than a small share of its light, has none: `run_recording`.)
-            if let Some(v) = lamp_far.get(row)
+            if let Some(v) = rec.lamp_far.get(row)
                 && !v[k].is_nan()
             {
                 self.lamp_far.insert(i, v.to_vec());
             }
         }
-        stats.culled_pairs += dropped;
-        counts += pass.counts;
+        stats.culled_pairs += rec.dropped;
+        counts += rec.pass.counts;
         // The finer anchors: a walk within the outer distance.
         if let Some((r, reaches)) = exact.outer.as_ref().filter(|_| !fine.is_empty()) {
             let from: Vec<(FarFrom, [&Vec<f64>; 4])> = fine
@@ -573,21 +566,15 @@ impl Lists {
                 .unwrap_or_default();
             let pts: Vec<[i32; 2]> = fine.iter().map(|&(i, _)| pixels[i]).collect();
             let how = Outer::Near(*r, reaches, &from);
-            let Recorded {
-                pass,
-                seen,
-                far,
-                dropped,
-                ..
-            } = run_recording(exact, &pts, signatures, how);
-            for ((j, &(i, _)), list) in fine.iter().enumerate().zip(seen) {
-                store(&pass, j, i, k, &mut out);
+            let rec = run_recording(exact, &pts, signatures, how);
+            for ((j, &(i, _)), list) in fine.iter().enumerate().zip(rec.seen) {
+                store(&rec.pass, j, i, k, &mut out);
                 self.seen.insert(i, list);
                 self.far
-                    .insert(i, far[j * (k + 1)..(j + 1) * (k + 1)].to_vec());
+                    .insert(i, rec.far[j * (k + 1)..(j + 1) * (k + 1)].to_vec());
             }
-            stats.culled_pairs += dropped;
-            counts += pass.counts;
+            stats.culled_pairs += rec.dropped;
+            counts += rec.pass.counts;
             counts.outer += fine.len() as u64;
         }
         // (Progress: the wanted pixels that neither the full queries nor
